@@ -1,0 +1,7 @@
+"""Test-session settings shared by the unit tests and the notebooks run under nbval."""
+
+import os
+
+# Notebooks run under nbval inherit this environment: no progress bars, no GUI backend.
+os.environ["KFCAL_QUIET"] = "1"
+os.environ.setdefault("MPLBACKEND", "Agg")

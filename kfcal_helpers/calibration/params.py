@@ -1,0 +1,103 @@
+"""Parameters of the accelerometer-calibration problem (SPEC-calibration)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from ..validation import require_finite, require_positive
+
+__all__ = ["CalibrationParams"]
+
+
+@dataclass(frozen=True)
+class CalibrationParams:
+    """All inputs of the calibration problem, validated on construction.
+
+    Units: accelerations m/s^2, velocities m/s, positions m, rates Hz,
+    times s, angular frequency rad/s, variances in the squared units.
+
+    The defaults are the SPEC's: 200 Hz IMU, 5 Hz GPS, 30 s, ``a(t) = 10 sin(0.2 t)``.
+    """
+
+    A: float = 10.0  #: acceleration amplitude, m/s^2
+    omega: float = 0.2  #: angular frequency of the acceleration, rad/s
+    imu_rate: float = 200.0  #: IMU sampling rate, Hz
+    gps_rate: float = 5.0  #: GPS fix rate, Hz (must divide imu_rate)
+    duration: float = 30.0  #: length of the run, s
+    bias_mean: float = 0.0  #: prior mean of the accelerometer bias, m/s^2
+    bias_var: float = 0.01  #: prior variance of the bias M_b, (m/s^2)^2
+    W: float = 0.0004  #: IMU white-noise variance per sample, (m/s^2)^2
+    p0_mean: float = 0.0  #: prior mean of the initial position, m
+    p0_var: float = 100.0  #: prior variance of the initial position M_p, m^2
+    v0_mean: float = 100.0  #: prior mean of the initial velocity, m/s
+    v0_var: float = 1.0  #: prior variance of the initial velocity M_v, (m/s)^2
+    gps_pos_var: float = 1.0  #: GPS position noise variance, m^2
+    gps_vel_var: float = 0.0016  #: GPS velocity noise variance, (m/s)^2
+
+    def __post_init__(self):
+        for name in ("A", "omega", "bias_mean", "p0_mean", "v0_mean"):
+            object.__setattr__(self, name, require_finite(name, getattr(self, name)))
+        for name in ("imu_rate", "gps_rate", "duration", "bias_var", "W", "p0_var",
+                     "v0_var", "gps_pos_var", "gps_vel_var"):
+            object.__setattr__(self, name, require_positive(name, getattr(self, name)))
+        ratio = self.imu_rate / self.gps_rate
+        if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
+            raise ValueError(
+                f"gps_rate must divide imu_rate (imu_rate/gps_rate a whole number >= 1), "
+                f"got imu_rate={self.imu_rate:g} Hz, gps_rate={self.gps_rate:g} Hz"
+            )
+        steps = self.duration * self.imu_rate
+        if abs(steps - round(steps)) > 1e-9 * steps:
+            raise ValueError(
+                f"duration must be a whole number of IMU periods (1/imu_rate = {1 / self.imu_rate:g} s), "
+                f"got {self.duration:g} s"
+            )
+        if self.duration < 1.0 / self.gps_rate - 1e-12:
+            raise ValueError(
+                f"duration must be at least one GPS period ({1 / self.gps_rate:g} s), got {self.duration:g} s"
+            )
+
+    # Derived quantities --------------------------------------------------
+    @property
+    def dt(self) -> float:
+        """IMU sampling interval, s."""
+        return 1.0 / self.imu_rate
+
+    @property
+    def steps_per_fix(self) -> int:
+        """IMU samples per GPS period (40 for the defaults)."""
+        return int(round(self.imu_rate / self.gps_rate))
+
+    @property
+    def n_imu(self) -> int:
+        """Number of IMU samples t_j = j*dt, j = 0..n_imu-1 (6001 for the defaults)."""
+        return int(round(self.duration * self.imu_rate)) + 1
+
+    @property
+    def fix_indices(self) -> np.ndarray:
+        """IMU sample indices of the GPS fixes, shape (n_gps,): 0, 40, 80, ..."""
+        return np.arange(0, self.n_imu, self.steps_per_fix)
+
+    @property
+    def n_gps(self) -> int:
+        """Number of GPS fixes (151 for the defaults)."""
+        return len(self.fix_indices)
+
+    @property
+    def t_imu(self) -> np.ndarray:
+        """IMU sample times, s, shape (n_imu,)."""
+        return np.arange(self.n_imu) * self.dt
+
+    @property
+    def t_gps(self) -> np.ndarray:
+        """GPS fix times, s, shape (n_gps,)."""
+        return self.t_imu[self.fix_indices]
+
+    def replace(self, **changes) -> "CalibrationParams":
+        """A copy with some fields changed (validated again)."""
+        return replace(self, **changes)
+
+    def as_dict(self) -> dict:
+        return asdict(self)

@@ -1,0 +1,84 @@
+"""Consistency statistics shared by both problems: NEES, NIS and their chi-square bounds.
+
+With N Monte Carlo runs and a statistic of dimension n, the run-averaged NEES
+(or NIS) of a consistent filter is chi-square with N*n degrees of freedom,
+divided by N.  The two-sided acceptance region at significance ``alpha`` is
+``[chi2.ppf(alpha/2, N*n)/N, chi2.ppf(1 - alpha/2, N*n)/N]``.  The same formula
+with N replaced by the number of time steps K bounds the time average of one run.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from .validation import require_finite, require_int
+
+__all__ = ["chi2_bounds", "normalized_squares", "nees", "nis", "inside_fraction"]
+
+
+def chi2_bounds(dim: int, n_samples: int, alpha: float = 0.05) -> tuple[float, float]:
+    """Bounds for the average of ``n_samples`` independent chi-square(dim) variables.
+
+    Parameters
+    ----------
+    dim : int, >= 1
+        Dimension of the state (NEES) or measurement (NIS).
+    n_samples : int, >= 1
+        Number of Monte Carlo runs averaged (or time steps, for a time average).
+    alpha : float in (0, 1)
+        Significance level of the two-sided test.
+
+    Returns
+    -------
+    (lower, upper) : floats, in the units of the averaged statistic (dimensionless).
+    """
+    dim = require_int("dim", dim, minimum=1)
+    n_samples = require_int("n_samples", n_samples, minimum=1)
+    alpha = require_finite("alpha", alpha)
+    if not 0 < alpha < 1:
+        raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
+    dof = dim * n_samples
+    lower = stats.chi2.ppf(alpha / 2, dof) / n_samples
+    upper = stats.chi2.ppf(1 - alpha / 2, dof) / n_samples
+    return float(lower), float(upper)
+
+
+def normalized_squares(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """Return ``err^T cov^{-1} err`` over leading axes.
+
+    Parameters
+    ----------
+    err : array (..., n)
+        Errors or innovations.
+    cov : array (..., n, n)
+        Their covariances; broadcast against ``err``'s leading axes.
+
+    Returns
+    -------
+    array (...,) of the normalized squared errors (dimensionless).
+    """
+    err = np.asarray(err, dtype=float)
+    cov = np.asarray(cov, dtype=float)
+    if err.ndim < 1 or cov.ndim < 2 or cov.shape[-1] != cov.shape[-2] or cov.shape[-1] != err.shape[-1]:
+        raise ValueError(
+            f"err must have shape (..., n) and cov (..., n, n) with the same n; got {err.shape} and {cov.shape}"
+        )
+    sol = np.linalg.solve(cov, err[..., None])[..., 0]
+    return np.einsum("...i,...i->...", err, sol)
+
+
+nees = normalized_squares
+nis = normalized_squares
+
+
+def inside_fraction(values, lower, upper) -> float:
+    """Share of the finite entries of ``values`` that lie in ``[lower, upper]``."""
+    values = np.asarray(values, dtype=float)
+    lower = np.broadcast_to(lower, values.shape)
+    upper = np.broadcast_to(upper, values.shape)
+    ok = np.isfinite(values)
+    if not ok.any():
+        raise ValueError("values must hold at least one finite entry")
+    inside = (values >= lower) & (values <= upper)
+    return float(inside[ok].mean())

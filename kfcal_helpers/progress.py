@@ -1,0 +1,31 @@
+"""Progress bars for long Monte Carlo loops, quiet under tests and CI.
+
+A bar is shown only when the environment variables ``CI`` and ``KFCAL_QUIET``
+are both unset (the test suite sets ``KFCAL_QUIET=1`` in its ``conftest.py``,
+so notebooks run under nbval print nothing variable).
+"""
+
+from __future__ import annotations
+
+import os
+
+__all__ = ["progress_enabled", "progress"]
+
+
+def progress_enabled() -> bool:
+    """True unless ``CI`` or ``KFCAL_QUIET`` is set to a non-empty value."""
+    return not (os.environ.get("CI") or os.environ.get("KFCAL_QUIET"))
+
+
+def progress(iterable, total: int | None = None, desc: str | None = None, enabled: bool | None = None):
+    """Wrap ``iterable`` in a tqdm bar (notebook widget or terminal) when enabled.
+
+    ``enabled=None`` means :func:`progress_enabled`.
+    """
+    if enabled is None:
+        enabled = progress_enabled()
+    if not enabled:
+        return iterable
+    from tqdm.auto import tqdm
+
+    return tqdm(iterable, total=total, desc=desc, leave=False)
