@@ -1,0 +1,24 @@
+"""Accelerometer bias calibration with GPS (SPEC-calibration).
+
+A 1-D vehicle with ``a(t) = A sin(omega t)``; a 200 Hz IMU with bias and white
+noise; 5 Hz GPS position and velocity.  A Kalman filter on the error state
+``[dp, dv, b]`` predicts at 200 Hz and updates at every fix.
+
+Modules: :mod:`.params` (the problem's parameters), :mod:`.simulation` (truth,
+IMU, GPS), :mod:`.error_model` (Phi, Gamma, H, Q, V, M0), :mod:`.filters`
+(filterpy wrapper and the batch path), :mod:`.montecarlo` (the six checks),
+and the command line in :mod:`.cli`.
+"""
+
+from .error_model import ErrorStateModel, error_state_model, phi_power
+from .filters import FilterResult, batch_filter, covariance_sequence, make_kalman_filter, run_filterpy
+from .montecarlo import CHECK_NAMES, ENGINES, Check, MonteCarloResult, format_checks, run_monte_carlo
+from .params import CalibrationParams
+from .simulation import TRUTH_MODELS, Simulation, acceleration, analytic_truth, integrate_left, simulate
+
+__all__ = [
+    "CalibrationParams", "Simulation", "simulate", "acceleration", "analytic_truth", "integrate_left",
+    "TRUTH_MODELS", "ErrorStateModel", "error_state_model", "phi_power", "FilterResult",
+    "make_kalman_filter", "run_filterpy", "covariance_sequence", "batch_filter", "Check",
+    "MonteCarloResult", "run_monte_carlo", "format_checks", "CHECK_NAMES", "ENGINES",
+]

@@ -1,0 +1,344 @@
+"""Monte Carlo validation of the calibration filter (the SPEC's six checks).
+
+Realizations are simulated in chunks of :data:`CHUNK_SIZE` (the 200 Hz arrays of a
+chunk are dropped once the chunk is filtered), and only sums over realizations
+are kept, so memory does not grow with the number of runs.
+
+For realization ``l`` and fix ``i``: error ``e = dx - dx_hat`` (a posteriori),
+prior error ``e_bar = dx - dx_hat_prior``, residual ``r = dz - H dx_hat_prior``.
+The checks, each judged against its own sampling band at significance
+``alpha`` (z = ``norm.ppf(1 - alpha/2)``, 1.96 for alpha = 0.05):
+
+1. ``mean_error``: ensemble mean of ``e`` against ``+-z s/sqrt(N)`` (s: ensemble std).
+2. ``covariance``: ensemble covariance of ``e`` against the filter's ``P``; variances
+   against the chi-square interval ``P chi2_{N-1}(alpha/2, 1-alpha/2)/(N-1)``,
+   correlations against the filter's, with Fisher's ``tanh(atanh(rho_P) +- z/sqrt(N-3))``.
+3. ``orthogonality``: ``(1/N) sum (e - e_mean) dx_hat^T`` against
+   ``+-z sqrt(P_kk mean(dx_hat_l^2)/N)`` (the spread of a product of independent factors).
+4. ``residual_independence``: the correlation ``sum r_i,a r_m,b / sqrt(sum r_i,a^2 sum r_m,b^2)``
+   for every pair of fixes ``i < m`` against ``+-q/sqrt(N + q^2)``, ``q = t_N(1 - alpha/2)``
+   (exact for independent Gaussian residuals).
+5. ``residual_variance``: ``(1/N) sum r_i r_i^T`` diagonal against ``S_i chi2_N/N``.
+6. ``nees``: run-averaged ``e^T P^-1 e`` against ``chi2_{3N}/N`` bounds.
+7. ``nis``: run-averaged ``r^T S^-1 r`` against ``chi2_{2N}/N`` bounds.
+
+``inside_fraction`` is the share of entries (fix x component, or pair x component
+for check 4, fix for NEES and NIS) inside the band; about ``1 - alpha`` for a
+consistent filter.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from ..consistency import chi2_bounds
+from ..progress import progress as _progress
+from ..validation import require_choice, require_finite, require_int
+from .filters import batch_filter, covariance_sequence, run_filterpy
+from .params import CalibrationParams
+from .simulation import TRUTH_MODELS, simulate
+
+__all__ = ["CHUNK_SIZE", "ENGINES", "CHECK_NAMES", "Check", "MonteCarloResult", "run_monte_carlo",
+           "format_checks"]
+
+CHUNK_SIZE = 500  #: realizations simulated together (fixed, so results do not depend on the machine)
+ENGINES = ("batch", "filterpy")
+CHECK_NAMES = ("mean_error", "covariance", "orthogonality", "residual_independence",
+               "residual_variance", "nees", "nis")
+
+
+@dataclass
+class Check:
+    """One statistical check.
+
+    statistic, expected : 1-D arrays, one entry per judged quantity (see the module docstring)
+    lower, upper : the pointwise band at significance ``alpha`` (about ``1 - alpha``
+        of the entries of a consistent filter fall inside)
+    sim_lower, sim_upper : the simultaneous band (Bonferroni: significance
+        ``alpha / (entries x checks)`` per entry), which a consistent filter leaves
+        nowhere, in all seven checks together, with probability at least
+        ``1 - alpha`` whatever the correlation between entries
+    inside_fraction : share of entries inside the pointwise band
+    worst : largest ``|statistic - expected|`` as a multiple of the distance from
+        ``expected`` to the simultaneous bound on that side (> 1 means outside)
+    """
+
+    name: str
+    description: str
+    statistic: np.ndarray
+    expected: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    sim_lower: np.ndarray
+    sim_upper: np.ndarray
+    inside_fraction: float = field(init=False)
+    worst: float = field(init=False)
+
+    def __post_init__(self):
+        arrays = [np.ravel(a) for a in (self.statistic, self.expected, self.lower, self.upper,
+                                       self.sim_lower, self.sim_upper)]
+        self.statistic, self.expected, self.lower, self.upper, self.sim_lower, self.sim_upper = arrays
+        s, c, lo, hi, slo, shi = arrays
+        self.inside_fraction = float(np.mean((s >= lo) & (s <= hi)))
+        dev = s - c
+        half = np.where(dev >= 0, shi - c, c - slo)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = np.where(dev == 0, 0.0, np.abs(dev) / half)
+        self.worst = float(np.max(ratio))
+
+    @property
+    def passed(self) -> bool:
+        """Pass when every entry is inside the simultaneous band (``worst <= 1``)."""
+        return self.worst <= 1.0
+
+
+@dataclass
+class MonteCarloResult:
+    """Ensemble statistics at the GPS fixes (n_gps fixes, N = n_runs realizations).
+
+    t_gps (n_gps,) s; P_prior, P_post (n_gps, 3, 3) and S (n_gps, 2, 2) from the filter;
+    e_mean, e_prior_mean (n_gps, 3); e_cov, e_prior_cov (n_gps, 3, 3) ensemble
+    statistics of the a posteriori / a priori errors; orthogonality (n_gps, 3, 3);
+    xhat_sq_mean (n_gps, 3); residual_moment (n_gps, 2, n_gps, 2) = (1/N) sum r r^T;
+    nees (n_gps,), nis (n_gps,) run averages (NaN at missing fixes for NIS);
+    seconds: wall time of simulation + filtering + statistics.
+    """
+
+    params: CalibrationParams
+    n_runs: int
+    engine: str
+    truth: str
+    alpha: float
+    seconds: float
+    t_gps: np.ndarray
+    missing: np.ndarray
+    P_prior: np.ndarray
+    P_post: np.ndarray
+    S: np.ndarray
+    e_mean: np.ndarray
+    e_cov: np.ndarray
+    e_prior_mean: np.ndarray
+    e_prior_cov: np.ndarray
+    orthogonality: np.ndarray
+    xhat_sq_mean: np.ndarray
+    residual_moment: np.ndarray
+    nees: np.ndarray
+    nis: np.ndarray
+
+    @property
+    def sigma_final(self) -> np.ndarray:
+        """[sigma_p, sigma_v, sigma_b] from the filter's P at the last fix (m, m/s, m/s^2)."""
+        return np.sqrt(np.diag(self.P_post[-1]))
+
+    @property
+    def ensemble_sigma_final(self) -> np.ndarray:
+        """The same from the ensemble covariance of the errors."""
+        return np.sqrt(np.diag(self.e_cov[-1]))
+
+    @property
+    def nees_bounds(self) -> tuple[float, float]:
+        return chi2_bounds(3, self.n_runs, self.alpha)
+
+    @property
+    def nis_bounds(self) -> tuple[float, float]:
+        return chi2_bounds(2, self.n_runs, self.alpha)
+
+    def residual_correlation(self) -> np.ndarray:
+        """``residual_moment`` normalized by ``sqrt(S_i,aa S_m,bb)``, shape (2 n_gps, 2 n_gps);
+        ordered [p_0, v_0, p_1, v_1, ...]; about N(0, 1/N) off the diagonal."""
+        d = np.sqrt(np.einsum("iaa->ia", self.S)).reshape(-1)
+        n = self.residual_moment.shape[0] * 2
+        return self.residual_moment.reshape(n, n) / np.outer(d, d)
+
+    def bands(self, level: float) -> dict:
+        """``{check: (statistic, expected, lower, upper)}`` at per-entry significance ``level``."""
+        N = self.n_runs
+        out = {}
+        sd = np.sqrt(np.einsum("iaa->ia", self.e_cov))
+        half = stats.t.ppf(1 - level / 2, N - 1) * sd / np.sqrt(N)
+        out["mean_error"] = (self.e_mean, 0 * sd, -half, half)
+
+        z = stats.norm.ppf(1 - level / 2)
+        P = self.P_post
+        iu = np.triu_indices(3)
+        diag = iu[0] == iu[1]
+        Pkk = np.einsum("iaa->ia", P)
+        Pkl = P[:, iu[0], iu[1]]
+        # variances: exact chi-square interval; correlations: Fisher's z-transform
+        stat = self.e_cov[:, iu[0], iu[1]].copy()
+        expected = Pkl.copy()
+        Ekk = np.einsum("iaa->ia", self.e_cov)
+        stat[:, ~diag] /= np.sqrt(Ekk[:, iu[0][~diag]] * Ekk[:, iu[1][~diag]])
+        expected[:, ~diag] /= np.sqrt(Pkk[:, iu[0][~diag]] * Pkk[:, iu[1][~diag]])
+        fisher = z / np.sqrt(N - 3) if N > 3 else np.inf
+        lo = np.tanh(np.arctanh(expected) - fisher)
+        hi = np.tanh(np.arctanh(expected) + fisher)
+        lo[:, diag] = Pkk * stats.chi2.ppf(level / 2, N - 1) / (N - 1)
+        hi[:, diag] = Pkk * stats.chi2.ppf(1 - level / 2, N - 1) / (N - 1)
+        out["covariance"] = (stat, expected, lo, hi)
+
+        half = z * np.sqrt(Pkk[:, :, None] * self.xhat_sq_mean[:, None, :] / N)
+        out["orthogonality"] = (self.orthogonality, 0 * half, -half, half)
+
+        ok = ~self.missing
+        M = self.residual_moment[ok][:, :, ok, :]
+        Sd = np.einsum("iaa->ia", self.S[ok])
+        i, m = np.triu_indices(M.shape[0], k=1)
+        # uncentred correlation of two independent zero-mean Gaussians: t = rho sqrt(N / (1 - rho^2)) ~ t_N
+        Md = np.einsum("iaia->ia", M)
+        rho = M[i, :, m, :] / np.sqrt(Md[i][:, :, None] * Md[m][:, None, :])
+        q = stats.t.ppf(1 - level / 2, N)
+        half = np.full_like(rho, q / np.sqrt(N + q**2))
+        out["residual_independence"] = (rho, 0 * half, -half, half)
+        out["residual_variance"] = (np.einsum("iaia->ia", M), Sd, Sd * stats.chi2.ppf(level / 2, N) / N,
+                                    Sd * stats.chi2.ppf(1 - level / 2, N) / N)
+        for name, dim, stat in (("nees", 3, self.nees), ("nis", 2, self.nis[ok])):
+            lo = stats.chi2.ppf(level / 2, dim * N) / N
+            hi = stats.chi2.ppf(1 - level / 2, dim * N) / N
+            out[name] = (stat, np.full_like(stat, dim), np.full_like(stat, lo), np.full_like(stat, hi))
+        return out
+
+    def checks(self) -> dict[str, Check]:
+        """The seven checks (see the module docstring), keyed by :data:`CHECK_NAMES`."""
+        pointwise = self.bands(self.alpha)
+        out = {}
+        for name in CHECK_NAMES:
+            stat, expected, lo, hi = pointwise[name]
+            family = self.alpha / len(CHECK_NAMES) / np.size(stat)
+            _, _, slo, shi = self.bands(family)[name]
+            out[name] = Check(name, _DESCRIPTIONS[name], stat, expected, lo, hi, slo, shi)
+        return out
+
+
+_DESCRIPTIONS = {
+    "mean_error": "ensemble mean of the error vs 0 (+-t s/sqrt(N))",
+    "covariance": "ensemble covariance of the error vs the filter's P",
+    "orthogonality": "(1/N) sum (e - e_mean) x_hat^T vs 0",
+    "residual_independence": "correlation of r_i and r_m for fixes i < m vs 0",
+    "residual_variance": "(1/N) sum r_i^2 vs the filter's S_i",
+    "nees": "run-averaged NEES vs chi2_3N/N bounds",
+    "nis": "run-averaged NIS vs chi2_2N/N bounds",
+}
+
+
+class _Sums:
+    """Running sums over realizations (everything at the GPS fixes)."""
+
+    def __init__(self, n_gps: int):
+        self.n = 0
+        self.e = np.zeros((n_gps, 3))
+        self.ee = np.zeros((n_gps, 3, 3))
+        self.eb = np.zeros((n_gps, 3))
+        self.ebeb = np.zeros((n_gps, 3, 3))
+        self.ex = np.zeros((n_gps, 3, 3))
+        self.x = np.zeros((n_gps, 3))
+        self.xx = np.zeros((n_gps, 3))
+        self.rr = np.zeros((2 * n_gps, 2 * n_gps))
+        self.nees = np.zeros(n_gps)
+        self.nis = np.zeros(n_gps)
+
+    def add(self, dx, x_prior, x_post, residual, P_post_inv, S_inv):
+        e = dx - x_post
+        eb = dx - x_prior
+        self.n += len(dx)
+        self.e += e.sum(0)
+        self.ee += np.einsum("nia,nib->iab", e, e)
+        self.eb += eb.sum(0)
+        self.ebeb += np.einsum("nia,nib->iab", eb, eb)
+        self.ex += np.einsum("nia,nib->iab", e, x_post)
+        self.x += x_post.sum(0)
+        self.xx += (x_post**2).sum(0)
+        r = residual.reshape(len(dx), -1)
+        self.rr += r.T @ r  # NaN only in the rows/columns of missing fixes
+        self.nees += np.einsum("nia,iab,nib->i", e, P_post_inv, e)
+        self.nis += np.einsum("nia,iab,nib->i", residual, S_inv, residual)
+
+
+def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000, seed=0,
+                    engine: str = "batch", truth: str = "euler", alpha: float = 0.05,
+                    missing_fixes=None, progress: bool | None = False) -> MonteCarloResult:
+    """Simulate ``n_runs`` realizations, filter them, and accumulate the check statistics.
+
+    Parameters
+    ----------
+    params : CalibrationParams (default: the SPEC's)
+    n_runs : int >= 2
+    seed : int or None, seed of ``numpy.random.default_rng``
+    engine : "batch" (vectorised, shared gains) or "filterpy" (one KalmanFilter per run)
+    truth : "euler" or "analytic"
+    alpha : significance of the bands, in (0, 1)
+    missing_fixes : optional bool array (n_gps,), fixes that are missing (outages)
+    progress : show a progress bar over chunks (None: unless CI/KFCAL_QUIET is set)
+
+    Returns
+    -------
+    MonteCarloResult
+    """
+    params = CalibrationParams() if params is None else params
+    if not isinstance(params, CalibrationParams):
+        raise ValueError(f"params must be a CalibrationParams, got {type(params).__name__}")
+    n_runs = require_int("n_runs", n_runs, minimum=2)
+    require_choice("engine", engine, ENGINES)
+    require_choice("truth", truth, TRUTH_MODELS)
+    alpha = require_finite("alpha", alpha)
+    if not 0 < alpha < 1:
+        raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
+    missing = np.zeros(params.n_gps, bool) if missing_fixes is None else np.asarray(missing_fixes)
+    if missing.shape != (params.n_gps,) or missing.dtype != bool:
+        raise ValueError(f"missing_fixes must be a bool array of shape ({params.n_gps},)")
+
+    start = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    cov = covariance_sequence(params, missing)
+    P, P_prior, S, K = cov
+    P_post = P[params.fix_indices]
+    P_post_inv = np.linalg.inv(P_post)
+    S_inv = np.linalg.inv(S)
+    sums = _Sums(params.n_gps)
+    sizes = [CHUNK_SIZE] * (n_runs // CHUNK_SIZE) + ([n_runs % CHUNK_SIZE] if n_runs % CHUNK_SIZE else [])
+    for size in _progress(sizes, total=len(sizes), desc=f"Monte Carlo ({engine})", enabled=progress):
+        sim = simulate(params, size, rng, truth=truth, missing_fixes=missing if missing.any() else None)
+        dx, dz = sim.dx_at_fixes, sim.dz
+        del sim
+        if engine == "batch":
+            res = batch_filter(params, dz, full_rate=False, covariances=cov)
+            x_prior, x_post, residual = res.x_prior, res.x_post, res.residual
+        else:
+            runs = [run_filterpy(params, dz[l]) for l in range(size)]
+            x_prior = np.stack([r.x_prior for r in runs])
+            x_post = np.stack([r.x_post for r in runs])
+            residual = np.stack([r.residual for r in runs])
+        sums.add(dx, x_prior, x_post, residual, P_post_inv, S_inv)
+
+    N = sums.n
+    e_mean = sums.e / N
+    e_cov = (sums.ee - N * np.einsum("ia,ib->iab", e_mean, e_mean)) / (N - 1)
+    eb_mean = sums.eb / N
+    eb_cov = (sums.ebeb - N * np.einsum("ia,ib->iab", eb_mean, eb_mean)) / (N - 1)
+    orth = (sums.ex - np.einsum("ia,ib->iab", e_mean, sums.x)) / N
+    n_gps = params.n_gps
+    nis = sums.nis / N
+    nis[missing] = np.nan
+    result = MonteCarloResult(
+        params=params, n_runs=N, engine=engine, truth=truth, alpha=alpha, seconds=0.0,
+        t_gps=params.t_gps, missing=missing, P_prior=P_prior, P_post=P_post, S=S,
+        e_mean=e_mean, e_cov=e_cov, e_prior_mean=eb_mean, e_prior_cov=eb_cov,
+        orthogonality=orth, xhat_sq_mean=sums.xx / N,
+        residual_moment=(sums.rr / N).reshape(n_gps, 2, n_gps, 2), nees=sums.nees / N, nis=nis)
+    result.checks()  # the statistics are part of the timed work
+    result.seconds = time.perf_counter() - start
+    return result
+
+
+def format_checks(result: MonteCarloResult) -> str:
+    """A fixed-precision text table of the checks (for notebooks and the CLI)."""
+    lines = [f"{'check':<22} {'inside':>7} {'worst':>7}  verdict",
+             f"{'-' * 22} {'-' * 7} {'-' * 7}  -------"]
+    for name, c in result.checks().items():
+        verdict = "pass" if c.passed else "FAIL"
+        lines.append(f"{name:<22} {c.inside_fraction:7.3f} {c.worst:7.2f}  {verdict}")
+    return "\n".join(lines)
