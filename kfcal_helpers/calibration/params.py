@@ -22,7 +22,7 @@ class CalibrationParams:
     """
 
     A: float = 10.0  #: acceleration amplitude, m/s^2
-    omega: float = 0.2  #: angular frequency of the acceleration, rad/s
+    omega: float = 0.2  #: angular frequency of the acceleration, rad/s (> 0; use A = 0 for no acceleration)
     imu_rate: float = 200.0  #: IMU sampling rate, Hz
     gps_rate: float = 5.0  #: GPS fix rate, Hz (must divide imu_rate)
     duration: float = 30.0  #: length of the run, s
@@ -37,9 +37,9 @@ class CalibrationParams:
     gps_vel_var: float = 0.0016  #: GPS velocity noise variance, (m/s)^2
 
     def __post_init__(self):
-        for name in ("A", "omega", "bias_mean", "p0_mean", "v0_mean"):
+        for name in ("A", "bias_mean", "p0_mean", "v0_mean"):
             object.__setattr__(self, name, require_finite(name, getattr(self, name)))
-        for name in ("imu_rate", "gps_rate", "duration", "bias_var", "W", "p0_var",
+        for name in ("omega", "imu_rate", "gps_rate", "duration", "bias_var", "W", "p0_var",
                      "v0_var", "gps_pos_var", "gps_vel_var"):
             object.__setattr__(self, name, require_positive(name, getattr(self, name)))
         ratio = self.imu_rate / self.gps_rate

@@ -1,0 +1,103 @@
+"""Bad input: a ValueError naming the argument, and exit status 2 with one line from the CLI."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from kfcal_helpers.calibration import (
+    CalibrationParams, batch_filter, covariance_sequence, run_filterpy, run_monte_carlo, simulate,
+)
+from kfcal_helpers.cli import main
+
+P0 = CalibrationParams()
+
+
+@pytest.mark.parametrize("field, value", [
+    ("W", 0.0), ("W", -1.0), ("bias_var", 0.0), ("p0_var", -2.0), ("v0_var", 0.0),
+    ("gps_pos_var", 0.0), ("gps_vel_var", -0.1), ("imu_rate", 0.0), ("gps_rate", -5.0),
+    ("duration", 0.0), ("duration", -30.0), ("omega", 0.0),
+    ("A", float("nan")), ("W", float("inf")), ("p0_mean", float("nan")), ("gps_rate", 3.0),
+    ("duration", 0.1),
+])
+def test_params_rejected(field, value):
+    with pytest.raises(ValueError, match=field):
+        CalibrationParams(**{field: value})
+
+
+def test_gps_rate_must_divide_imu_rate():
+    with pytest.raises(ValueError, match="divide"):
+        CalibrationParams(imu_rate=200, gps_rate=7)
+    assert CalibrationParams(imu_rate=100, gps_rate=10).steps_per_fix == 10
+
+
+def test_runs_and_choices_rejected():
+    with pytest.raises(ValueError, match="n_runs"):
+        run_monte_carlo(n_runs=1)
+    with pytest.raises(ValueError, match="engine"):
+        run_monte_carlo(n_runs=2, engine="fast")
+    with pytest.raises(ValueError, match="truth"):
+        simulate(P0, 2, np.random.default_rng(0), truth="exact")
+    with pytest.raises(ValueError, match="alpha"):
+        run_monte_carlo(n_runs=2, alpha=1.5)
+    with pytest.raises(ValueError, match="rng"):
+        simulate(P0, 2, 0)
+
+
+def test_measurement_shapes_rejected():
+    with pytest.raises(ValueError, match="dz"):
+        run_filterpy(P0, np.zeros((150, 2)))
+    with pytest.raises(ValueError, match="dz"):
+        run_filterpy(P0, np.zeros((151, 3)))
+    with pytest.raises(ValueError, match="dz"):
+        batch_filter(P0, np.zeros((151, 2)))
+    bad = np.zeros((151, 2))
+    bad[3, 0] = np.nan  # half a fix missing
+    with pytest.raises(ValueError, match="dz"):
+        run_filterpy(P0, bad)
+    per_run = np.zeros((2, 151, 2))
+    per_run[0, 5] = np.nan  # missing in one realization only
+    with pytest.raises(ValueError, match="dz"):
+        batch_filter(P0, per_run)
+    with pytest.raises(ValueError, match="missing_fixes"):
+        covariance_sequence(P0, np.zeros(10, bool))
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "kfcal_helpers", "calibrate", *args],
+                          capture_output=True, text=True, env={"KFCAL_QUIET": "1", "PATH": ""})
+
+
+@pytest.mark.parametrize("args, word", [
+    (["--runs", "1"], "--runs"), (["--gps-rate", "3"], "gps_rate"), (["--duration", "-1"], "duration"),
+    (["--omega", "nan"], "omega"), (["--imu-rate", "0"], "imu_rate"), (["--engine", "gpu"], "engine"),
+    (["--runs", "ten"], "--runs"), (["--truth", "rk4"], "truth"),
+])
+def test_cli_bad_input_one_line_exit_2(args, word):
+    r = run_cli(*args)
+    assert r.returncode == 2
+    assert r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and word in lines[0] and "Traceback" not in r.stderr
+
+
+def test_cli_json(tmp_path):
+    r = run_cli("--runs", "50", "--seed", "3", "--json", "--figures", str(tmp_path))
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    for key in ("runs", "engine", "seconds", "sigma_final", "ensemble_sigma_final", "checks"):
+        assert key in d
+    assert d["runs"] == 50 and d["engine"] == "batch" and len(d["sigma_final"]) == 3
+    for name in ("mean_error", "covariance", "orthogonality", "residual_independence", "nees", "nis"):
+        assert 0.0 <= d["checks"][name]["inside_fraction"] <= 1.0
+    assert len(d["checks"]["nees"]["bounds"]) == 2 and len(d["checks"]["nis"]["bounds"]) == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "calibration_checks.png", "calibration_errors.png", "calibration_sigma_sawtooth.png"]
+
+
+def test_cli_table_in_process(capsys):
+    assert main(["calibrate", "--runs", "20", "--engine", "filterpy"]) == 0
+    out = capsys.readouterr().out
+    assert "nees" in out and "engine filterpy" in out
