@@ -2,6 +2,5 @@
 
 import os
 
-# Notebooks run under nbval inherit this environment: no progress bars, no GUI backend.
+# Notebooks run under nbval inherit this environment: no progress bars.
 os.environ["KFCAL_QUIET"] = "1"
-os.environ.setdefault("MPLBACKEND", "Agg")

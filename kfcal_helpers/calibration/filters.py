@@ -22,7 +22,7 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 
 from ..validation import require_shape
-from .error_model import error_state_model, phi_power
+from .error_model import ErrorStateModel, error_state_model, phi_power
 from .params import CalibrationParams
 
 __all__ = ["FilterResult", "make_kalman_filter", "run_filterpy", "covariance_sequence", "batch_filter"]
@@ -53,12 +53,14 @@ class FilterResult:
     K: np.ndarray
 
 
-def make_kalman_filter(params: CalibrationParams) -> KalmanFilter:
+def make_kalman_filter(params: CalibrationParams, model: ErrorStateModel | None = None) -> KalmanFilter:
     """A ``filterpy.kalman.KalmanFilter(dim_x=3, dim_z=2)`` set up for ``params``.
 
-    F = Phi, Q = W Gamma Gamma^T, H, R = V, x = prior mean (3, 1), P = M0.
+    F = Phi, Q = W Gamma Gamma^T, H, R = V, x = prior mean (3, 1), P = M0, all
+    from ``model`` (default: ``error_state_model(params)``, the true model; pass
+    another one to study a filter whose model differs from the truth).
     """
-    m = error_state_model(params)
+    m = _model(params, model)
     kf = KalmanFilter(dim_x=3, dim_z=2)
     kf.F = m.Phi.copy()
     kf.Q = m.Q.copy()
@@ -67,6 +69,14 @@ def make_kalman_filter(params: CalibrationParams) -> KalmanFilter:
     kf.x = m.x0.reshape(3, 1).copy()
     kf.P = m.M0.copy()
     return kf
+
+
+def _model(params: CalibrationParams, model: ErrorStateModel | None) -> ErrorStateModel:
+    if model is None:
+        return error_state_model(params)
+    if not isinstance(model, ErrorStateModel):
+        raise ValueError(f"model must be an ErrorStateModel, got {type(model).__name__}")
+    return model
 
 
 def _check_dz(params: CalibrationParams, dz, batch: bool) -> np.ndarray:
@@ -78,20 +88,21 @@ def _check_dz(params: CalibrationParams, dz, batch: bool) -> np.ndarray:
     return dz
 
 
-def run_filterpy(params: CalibrationParams, dz) -> FilterResult:
+def run_filterpy(params: CalibrationParams, dz, model: ErrorStateModel | None = None) -> FilterResult:
     """Run filterpy's KalmanFilter over one realization.
 
     Parameters
     ----------
     params : CalibrationParams
     dz : array (n_gps, 2), error-state measurements [m, m/s]; a NaN row is a missing fix
+    model : optional ErrorStateModel the filter assumes (default: the true one)
 
     Returns
     -------
     FilterResult without the realization axis.
     """
     dz = _check_dz(params, dz, batch=False)
-    kf = make_kalman_filter(params)
+    kf = make_kalman_filter(params, model)
     n_imu, n_gps, r = params.n_imu, params.n_gps, params.steps_per_fix
     x = np.empty((n_imu, 3))
     P = np.empty((n_imu, 3, 3))
@@ -121,7 +132,7 @@ def run_filterpy(params: CalibrationParams, dz) -> FilterResult:
     return FilterResult(x, P, x_prior, x[idx].copy(), P_prior, P[idx].copy(), residual, S, K)
 
 
-def covariance_sequence(params: CalibrationParams, missing_fixes=None):
+def covariance_sequence(params: CalibrationParams, missing_fixes=None, model: ErrorStateModel | None = None):
     """The data-independent part of the filter: covariances and gains.
 
     Uses exactly filterpy's formulas (predict ``F P F^T + Q``; update with
@@ -131,12 +142,13 @@ def covariance_sequence(params: CalibrationParams, missing_fixes=None):
     ----------
     params : CalibrationParams
     missing_fixes : optional bool array (n_gps,), True where no update happens
+    model : optional ErrorStateModel the filter assumes (default: the true one)
 
     Returns
     -------
     P (n_imu, 3, 3), P_prior (n_gps, 3, 3), S (n_gps, 2, 2), K (n_gps, 3, 2)
     """
-    m = error_state_model(params)
+    m = _model(params, model)
     n_imu, n_gps, r = params.n_imu, params.n_gps, params.steps_per_fix
     missing = np.zeros(n_gps, bool) if missing_fixes is None else np.asarray(missing_fixes, bool)
     if missing.shape != (n_gps,):
@@ -164,7 +176,8 @@ def covariance_sequence(params: CalibrationParams, missing_fixes=None):
     return P, P_prior, S, K
 
 
-def batch_filter(params: CalibrationParams, dz, full_rate: bool = True, covariances=None) -> FilterResult:
+def batch_filter(params: CalibrationParams, dz, full_rate: bool = True, covariances=None,
+                 model: ErrorStateModel | None = None) -> FilterResult:
     """Run the filter on many realizations at once (same gains for all).
 
     Parameters
@@ -173,7 +186,8 @@ def batch_filter(params: CalibrationParams, dz, full_rate: bool = True, covarian
     dz : array (n, n_gps, 2), error-state measurements; a missing fix must be
         NaN in every realization (the gains are shared)
     full_rate : bool, also return the estimate at every IMU sample (n, n_imu, 3)
-    covariances : optional output of :func:`covariance_sequence` to reuse
+    covariances : optional output of :func:`covariance_sequence` to reuse (same model)
+    model : optional ErrorStateModel the filter assumes (default: the true one)
 
     Returns
     -------
@@ -185,13 +199,13 @@ def batch_filter(params: CalibrationParams, dz, full_rate: bool = True, covarian
     if (missing_runs != missing).any():
         raise ValueError("dz: the batch filter needs the same missing fixes in every realization; "
                          "use run_filterpy for realization-specific dropouts")
+    m = _model(params, model)
     if covariances is None:
-        covariances = covariance_sequence(params, missing)
+        covariances = covariance_sequence(params, missing, m)
     P, P_prior, S, K = covariances
-    m = error_state_model(params)
     n, n_gps, r = dz.shape[0], params.n_gps, params.steps_per_fix
     H = m.H
-    Phi_r = phi_power(params, r)
+    Phi_r = np.linalg.matrix_power(m.Phi, r)
     x_prior = np.empty((n, n_gps, 3))
     x_post = np.empty((n, n_gps, 3))
     residual = np.full((n, n_gps, 2), np.nan)
@@ -206,7 +220,10 @@ def batch_filter(params: CalibrationParams, dz, full_rate: bool = True, covarian
     x = None
     if full_rate:
         # Between fixes the estimate is only predicted: x(t_i + k dt) = Phi^k x_post(t_i).
-        powers = phi_power(params, np.arange(r))  # (r, 3, 3)
+        powers = np.empty((r, 3, 3))
+        powers[0] = np.eye(3)
+        for k in range(1, r):
+            powers[k] = m.Phi @ powers[k - 1]
         x = np.einsum("kab,nib->nika", powers, x_post).reshape(n, n_gps * r, 3)[:, : params.n_imu]
     idx = params.fix_indices
     return FilterResult(x, P, x_prior, x_post, P_prior, P[idx].copy(), residual, S, K)

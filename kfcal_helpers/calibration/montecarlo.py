@@ -38,6 +38,7 @@ from scipy import stats
 from ..consistency import chi2_bounds
 from ..progress import progress as _progress
 from ..validation import require_choice, require_finite, require_int
+from .error_model import ErrorStateModel
 from .filters import batch_filter, covariance_sequence, run_filterpy
 from .params import CalibrationParams
 from .simulation import TRUTH_MODELS, simulate
@@ -260,7 +261,8 @@ class _Sums:
 
 def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000, seed=0,
                     engine: str = "batch", truth: str = "euler", alpha: float = 0.05,
-                    missing_fixes=None, progress: bool | None = False) -> MonteCarloResult:
+                    missing_fixes=None, progress: bool | None = False,
+                    model: ErrorStateModel | None = None) -> MonteCarloResult:
     """Simulate ``n_runs`` realizations, filter them, and accumulate the check statistics.
 
     Parameters
@@ -273,6 +275,8 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
     alpha : significance of the bands, in (0, 1)
     missing_fixes : optional bool array (n_gps,), fixes that are missing (outages)
     progress : show a progress bar over chunks (None: unless CI/KFCAL_QUIET is set)
+    model : optional ErrorStateModel the filter assumes (default: the true one); the
+        truth is always simulated with ``params``
 
     Returns
     -------
@@ -293,7 +297,7 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
 
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
-    cov = covariance_sequence(params, missing)
+    cov = covariance_sequence(params, missing, model)
     P, P_prior, S, K = cov
     P_post = P[params.fix_indices]
     P_post_inv = np.linalg.inv(P_post)
@@ -305,10 +309,10 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
         dx, dz = sim.dx_at_fixes, sim.dz
         del sim
         if engine == "batch":
-            res = batch_filter(params, dz, full_rate=False, covariances=cov)
+            res = batch_filter(params, dz, full_rate=False, covariances=cov, model=model)
             x_prior, x_post, residual = res.x_prior, res.x_post, res.residual
         else:
-            runs = [run_filterpy(params, dz[l]) for l in range(size)]
+            runs = [run_filterpy(params, dz[l], model) for l in range(size)]
             x_prior = np.stack([r.x_prior for r in runs])
             x_post = np.stack([r.x_post for r in runs])
             residual = np.stack([r.residual for r in runs])
