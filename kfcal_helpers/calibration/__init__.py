@@ -14,6 +14,8 @@ from .error_model import ErrorStateModel, error_state_model, phi_power
 from .filters import FilterResult, batch_filter, covariance_sequence, make_kalman_filter, run_filterpy
 from .montecarlo import CHECK_NAMES, ENGINES, Check, MonteCarloResult, format_checks, run_monte_carlo
 from .params import CalibrationParams
+from .outages import outage_mask, parse_outage
+from .batch_estimate import batch_conditioning_covariance, prior_covariances_at_fixes, rts_smooth_fixes
 from .simulation import TRUTH_MODELS, Simulation, acceleration, analytic_truth, integrate_left, simulate
 
 __all__ = [
@@ -21,4 +23,6 @@ __all__ = [
     "TRUTH_MODELS", "ErrorStateModel", "error_state_model", "phi_power", "FilterResult",
     "make_kalman_filter", "run_filterpy", "covariance_sequence", "batch_filter", "Check",
     "MonteCarloResult", "run_monte_carlo", "format_checks", "CHECK_NAMES", "ENGINES",
+    "outage_mask", "parse_outage", "batch_conditioning_covariance", "prior_covariances_at_fixes",
+    "rts_smooth_fixes",
 ]

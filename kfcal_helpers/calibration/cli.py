@@ -10,6 +10,7 @@ import numpy as np
 
 from ..validation import require_int
 from .montecarlo import CHECK_NAMES, ENGINES, format_checks, run_monte_carlo
+from .outages import outage_mask, parse_outage
 from .params import CalibrationParams
 from .simulation import TRUTH_MODELS
 
@@ -29,6 +30,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--gps-rate", type=float, default=d.gps_rate, help=f"Hz, divides the IMU rate (default {d.gps_rate:g})")
     p.add_argument("--duration", type=float, default=d.duration, help=f"s (default {d.duration:g})")
     p.add_argument("--truth", choices=TRUTH_MODELS, default="euler", help="truth model (default euler)")
+    p.add_argument("--outage", action="append", default=[], metavar="START:END",
+                   help="GPS outage in seconds, fixes with START <= t < END are missing (repeatable)")
     p.add_argument("--figures", metavar="DIR", help="also write the notebook-5 and notebook-6 figures as PNG")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     p.set_defaults(run=run)
@@ -87,8 +90,10 @@ def run(args) -> int:
     require_int("--runs", args.runs, minimum=2)
     params = CalibrationParams(omega=args.omega, imu_rate=args.imu_rate, gps_rate=args.gps_rate,
                                duration=args.duration)
+    windows = [parse_outage(text, "--outage") for text in args.outage]
+    missing = outage_mask(params, windows, name="--outage") if windows else None
     mc = run_monte_carlo(params, n_runs=args.runs, seed=args.seed, engine=args.engine,
-                         truth=args.truth, progress=None)
+                         truth=args.truth, progress=None, missing_fixes=missing)
     written = write_figures(mc, args.figures) if args.figures else []
     if args.json:
         d = result_to_dict(mc)

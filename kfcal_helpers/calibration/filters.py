@@ -22,7 +22,7 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 
 from ..validation import require_shape
-from .error_model import ErrorStateModel, error_state_model, phi_power
+from .error_model import ErrorStateModel, error_state_model
 from .params import CalibrationParams
 
 __all__ = ["FilterResult", "make_kalman_filter", "run_filterpy", "covariance_sequence", "batch_filter"]
@@ -72,6 +72,9 @@ def make_kalman_filter(params: CalibrationParams, model: ErrorStateModel | None 
 
 
 def _model(params: CalibrationParams, model: ErrorStateModel | None) -> ErrorStateModel:
+    """The filter's model: ``model`` if given (validated), else the true one for ``params``."""
+    if not isinstance(params, CalibrationParams):
+        raise ValueError(f"params must be a CalibrationParams, got {type(params).__name__}")
     if model is None:
         return error_state_model(params)
     if not isinstance(model, ErrorStateModel):
