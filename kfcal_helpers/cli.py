@@ -22,16 +22,12 @@ class OneLineParser(argparse.ArgumentParser):
 
 def _build_parser() -> argparse.ArgumentParser:
     from .calibration import cli as calibration_cli
+    from .coop import cli as coop_cli
 
     parser = OneLineParser(prog="python -m kfcal_helpers", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     calibration_cli.add_parser(sub)
-    try:
-        from .coop import cli as coop_cli
-    except ImportError:  # the cooperative-localization part is optional while it is built
-        coop_cli = None
-    if coop_cli is not None:
-        coop_cli.add_parser(sub)
+    coop_cli.add_parser(sub)
     return parser
 
 

@@ -1,0 +1,76 @@
+"""Cooperative localization of a ground robot (UGV) and an aerial robot (UAV).
+
+Six states (two planar poses), four constant controls, five measurements (two
+bearings, a range, the UAV's GPS), sampled every 0.1 s for 100 s (SPEC-coop).
+
+Modules:
+
+* :mod:`.model` -- :class:`CoopParams`, dynamics, the exact closed-form one-step map,
+  nominal trajectory, measurement function, angle wrapping, Jacobians A, B, C,
+  F, G, H, the observability matrix over a window;
+* :mod:`.simulation` -- truth model (per-step noise N(0, Qtrue)) and seeded logs;
+* :mod:`.filters` -- LKF, EKF, UKF on filterpy, with a common :class:`FilterResult`;
+* :mod:`.montecarlo` -- truth-model tests (NEES/NIS with chi-square bounds);
+* :mod:`.data` -- course log loader/writer (CSV folder or ``.mat``);
+* :mod:`.plots` -- figures of the notebooks; :mod:`.tables` -- fixed-precision text output; :mod:`.cli` -- ``python -m kfcal_helpers coop``.
+"""
+
+from .data import CoopLog, load_log, write_log_csv, write_log_mat
+from .filters import (
+    FILTERS,
+    TUNED_Q_SCALE,
+    UKF_POINTS,
+    CoopEKF,
+    FilterResult,
+    make_ekf,
+    make_lkf,
+    make_ukf,
+    run_ekf,
+    run_filter,
+    run_lkf,
+    run_ukf,
+    tune_q_scale,
+    tuned_Q,
+)
+from .model import (
+    MEAS_ANGLES,
+    MEAS_LABELS,
+    N_MEAS,
+    N_STATES,
+    STATE_ANGLES,
+    STATE_LABELS,
+    CoopParams,
+    discretize,
+    dynamics,
+    jacobian_A,
+    jacobian_B,
+    jacobian_C,
+    measure,
+    measurement_mean,
+    measurement_residual,
+    nominal_trajectory,
+    observability_matrix,
+    state_add,
+    state_mean,
+    state_residual,
+    step,
+    wrap_angle,
+    wrap_measurement,
+    wrap_state,
+)
+from .montecarlo import MonteCarloResult, truth_model_test
+from .simulation import DEFAULT_LOG_SEED, generate_log, simulate_measurements, simulate_truth
+from .tables import format_matrix, format_number, format_table
+
+__all__ = [
+    "CoopLog", "load_log", "write_log_csv", "write_log_mat",
+    "FILTERS", "TUNED_Q_SCALE", "UKF_POINTS", "CoopEKF", "FilterResult", "make_ekf", "make_lkf", "make_ukf",
+    "run_ekf", "run_filter", "run_lkf", "run_ukf", "tune_q_scale", "tuned_Q",
+    "MEAS_ANGLES", "MEAS_LABELS", "N_MEAS", "N_STATES", "STATE_ANGLES", "STATE_LABELS", "CoopParams",
+    "discretize", "dynamics", "jacobian_A", "jacobian_B", "jacobian_C", "measure", "measurement_mean",
+    "measurement_residual", "nominal_trajectory", "observability_matrix", "state_add", "state_mean",
+    "state_residual", "step", "wrap_angle", "wrap_measurement", "wrap_state",
+    "MonteCarloResult", "truth_model_test",
+    "DEFAULT_LOG_SEED", "generate_log", "simulate_measurements", "simulate_truth",
+    "format_matrix", "format_number", "format_table",
+]

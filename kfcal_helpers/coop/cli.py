@@ -1,0 +1,98 @@
+"""Sub-command ``coop``: run a filter on an observation log, or a truth-model Monte Carlo.
+
+Examples::
+
+    python -m kfcal_helpers coop --filter ekf                   # the generated (seeded) log
+    python -m kfcal_helpers coop --filter ukf --log ../shared/data/coop_localization
+    python -m kfcal_helpers coop --filter lkf --runs 50 --seed 1 --json
+"""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+
+from ..consistency import chi2_bounds
+from ..validation import require_int, require_positive
+from .data import load_log
+from .filters import FILTERS, TUNED_Q_SCALE, run_filter
+from .model import N_MEAS, CoopParams
+from .montecarlo import truth_model_test
+from .simulation import DEFAULT_LOG_SEED, generate_log
+
+__all__ = ["add_parser", "run", "log_summary"]
+
+
+def add_parser(subparsers):
+    """Register ``coop`` on an argparse sub-parsers object."""
+    p = subparsers.add_parser("coop", help="cooperative localization: LKF/EKF/UKF on a log or a truth-model Monte Carlo",
+                              description=__doc__.splitlines()[0])
+    p.add_argument("--filter", choices=FILTERS, default="ekf", help="which filter (default ekf)")
+    p.add_argument("--log", metavar="PATH", help="course log: a folder of CSVs or a .mat (default: the generated log)")
+    p.add_argument("--runs", type=int, metavar="N", help="run an N-run truth-model Monte Carlo instead of a log")
+    p.add_argument("--seed", type=int, default=None,
+                   help=f"seed of the generated log (default {DEFAULT_LOG_SEED}) or of the Monte Carlo (default 0)")
+    p.add_argument("--q-scale", type=float, default=None, metavar="S",
+                   help="filter Q = S * Qtrue (default: the tuned scale of the filter)")
+    p.add_argument("--every", type=int, default=1, metavar="M", help="use the measurements of every M-th step only")
+    p.add_argument("--alpha", type=float, default=0.05, help="significance of the chi-square tests (default 0.05)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(run=run)
+    return p
+
+
+def log_summary(result, alpha: float = 0.05) -> dict:
+    """Time-averaged NIS (and NEES when the truth is known) of one run, with their bounds."""
+    n_meas = int(np.isfinite(result.nis).sum())
+    if n_meas == 0:
+        raise ValueError("log: it holds no measurement (every ydata column is NaN)")
+    out = {"nis_time_average": result.time_average_nis(), "nis_bounds": list(chi2_bounds(N_MEAS, n_meas, alpha)),
+           "measurements": n_meas}
+    if result.nees is not None:
+        out["nees_time_average"] = float(result.nees.mean())
+        out["nees_bounds"] = list(chi2_bounds(6, result.nees.size, alpha))
+    return out
+
+
+def run(args) -> int:
+    """Run the sub-command; returns the exit code (ValueError for bad input)."""
+    every = require_int("every", args.every, minimum=1)
+    t0 = time.perf_counter()
+    if args.runs is not None:
+        if args.log is not None:
+            raise ValueError("--runs: a truth-model Monte Carlo simulates its own data; do not give --log with it")
+        runs = require_int("runs", args.runs, minimum=1)
+        params = CoopParams()
+        kwargs = {} if args.q_scale is None else {"Q": require_positive("q-scale", args.q_scale) * params.Qtrue}
+        mc = truth_model_test(args.filter, runs, seed=0 if args.seed is None else args.seed, params=params,
+                              alpha=args.alpha, every=every, **kwargs)
+        out = mc.summary()
+        out["q_scale"] = TUNED_Q_SCALE[args.filter] if args.q_scale is None else args.q_scale
+    else:
+        if args.log is not None:
+            log = load_log(args.log)
+        else:
+            log = generate_log(seed=DEFAULT_LOG_SEED if args.seed is None else args.seed)
+        if every > 1:
+            log = log.every(every)
+        params = log.params()
+        scale = TUNED_Q_SCALE[args.filter] if args.q_scale is None else require_positive("q-scale", args.q_scale)
+        result = run_filter(args.filter, log.y, params, Q=scale * params.Qtrue, truth=log.truth)
+        if not np.all(np.isfinite(result.x)):
+            raise ValueError(f"log: the {args.filter.upper()} diverged (non-finite estimate)")
+        out = {"filter": args.filter, "steps": int(log.n_samples), "source": log.source, "q_scale": scale,
+               "every": every, **log_summary(result, args.alpha)}
+    out["seconds"] = time.perf_counter() - t0
+    if args.json:
+        print(json.dumps(out))
+    else:
+        width = max(len(k) for k in out)
+        for key, value in out.items():
+            if isinstance(value, float):
+                value = f"{value:.4g}"
+            elif isinstance(value, list):
+                value = "[" + ", ".join(f"{v:.4g}" for v in value) + "]"
+            print(f"{key:<{width}}  {value}")
+    return 0

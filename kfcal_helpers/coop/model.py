@@ -1,0 +1,369 @@
+"""Cooperative-localization model: parameters, dynamics, measurements, Jacobians.
+
+State ``x = [xi_g, eta_g, theta_g, xi_a, eta_a, theta_a]`` (m, m, rad, m, m, rad):
+east, north and heading of the ground vehicle (UGV) and of the aerial vehicle
+(UAV).  Control ``u = [v_g, phi_g, v_a, omega_a]`` (m/s, rad, m/s, rad/s).
+Measurement ``y = [bearing UGV->UAV - theta_g, range, bearing UAV->UGV - theta_a,
+xi_a, eta_a]`` (rad, m, rad, m, m), angles wrapped to (-pi, pi].
+
+Headings in states returned by this module are wrapped to (-pi, pi] as well.
+Every function accepts arrays with leading axes: ``x`` of shape (..., 6),
+``u`` of shape (..., 4) or (4,).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from ..validation import require_covariance, require_int, require_positive, require_shape
+
+__all__ = [
+    "N_STATES",
+    "N_MEAS",
+    "STATE_ANGLES",
+    "MEAS_ANGLES",
+    "STATE_LABELS",
+    "MEAS_LABELS",
+    "CoopParams",
+    "require_last_axis",
+    "wrap_angle",
+    "wrap_state",
+    "wrap_measurement",
+    "state_add",
+    "state_mean",
+    "measurement_mean",
+    "state_residual",
+    "measurement_residual",
+    "dynamics",
+    "step",
+    "nominal_trajectory",
+    "measure",
+    "jacobian_A",
+    "jacobian_B",
+    "jacobian_C",
+    "discretize",
+    "observability_matrix",
+]
+
+N_STATES = 6
+N_MEAS = 5
+#: indices of the angle components of the state (headings) and of the measurement (bearings)
+STATE_ANGLES = (2, 5)
+MEAS_ANGLES = (0, 2)
+#: plot labels with units
+STATE_LABELS = (r"$\xi_g$ [m]", r"$\eta_g$ [m]", r"$\theta_g$ [rad]",
+                r"$\xi_a$ [m]", r"$\eta_a$ [m]", r"$\theta_a$ [rad]")
+MEAS_LABELS = (r"bearing UGV$\to$UAV [rad]", "range [m]", r"bearing UAV$\to$UGV [rad]",
+               r"UAV east $\xi_a$ [m]", r"UAV north $\eta_a$ [m]")
+
+
+def _diag(*values):
+    return field(default_factory=lambda: np.diag(np.array(values, dtype=float)))
+
+
+def _vector(*values):
+    return field(default_factory=lambda: np.array(values, dtype=float))
+
+
+@dataclass(frozen=True, eq=False)
+class CoopParams:
+    """All inputs of the cooperative-localization problem, validated on construction.
+
+    Defaults are the SPEC's: ``L = 0.5 m``, ``dT = 0.1 s``, 100 s, nominal
+    ``x0 = [10, 0, pi/2, -60, 0, -pi/2]``, ``u0 = [2, -pi/18, 12, pi/25]``,
+    per-step (discrete-time) noise covariances ``Qtrue`` (6x6) and ``Rtrue`` (5x5).
+    ``P0`` (6x6) is the covariance of the initial state about ``x0``: the truth-model
+    tests draw the true initial state from N(x0, P0) and every filter starts at
+    (x0, P0).  Arrays are stored read-only.
+    """
+
+    L: float = 0.5  #: UGV wheelbase, m
+    dT: float = 0.1  #: sampling interval, s
+    duration: float = 100.0  #: length of a run, s
+    x0: np.ndarray = _vector(10.0, 0.0, np.pi / 2, -60.0, 0.0, -np.pi / 2)  #: nominal initial state
+    u0: np.ndarray = _vector(2.0, -np.pi / 18, 12.0, np.pi / 25)  #: nominal (constant) control
+    Qtrue: np.ndarray = _diag(0.001, 0.001, 0.01, 0.001, 0.001, 0.01)  #: process noise per step
+    Rtrue: np.ndarray = _diag(0.0225, 64.0, 0.04, 36.0, 36.0)  #: measurement noise
+    P0: np.ndarray = _diag(1.0, 1.0, 0.01, 1.0, 1.0, 0.01)  #: initial covariance (m^2, rad^2)
+
+    def __post_init__(self):
+        for name in ("L", "dT", "duration"):
+            object.__setattr__(self, name, require_positive(name, getattr(self, name)))
+        steps = self.duration / self.dT
+        if abs(steps - round(steps)) > 1e-9 * max(steps, 1.0) or round(steps) < 1:
+            raise ValueError(f"duration must be a whole number (>= 1) of dT = {self.dT:g} s, got {self.duration:g} s")
+        arrays = {
+            "x0": require_shape("x0", self.x0, (N_STATES,)),
+            "u0": require_shape("u0", self.u0, (4,)),
+            "Qtrue": require_covariance("Qtrue", self.Qtrue, N_STATES),
+            "Rtrue": require_covariance("Rtrue", self.Rtrue, N_MEAS),
+            "P0": require_covariance("P0", self.P0, N_STATES),
+        }
+        for name in ("x0", "u0"):
+            if not np.all(np.isfinite(arrays[name])):
+                raise ValueError(f"{name} must hold only finite numbers")
+        if abs(np.cos(arrays["u0"][1])) < 1e-9:
+            raise ValueError("u0 steering angle phi_g must not be +-pi/2 (tan is infinite)")
+        for name, arr in arrays.items():
+            arr = arr.copy()
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples t_k = k dT, k = 0..n_samples-1 (1001 for the defaults)."""
+        return int(round(self.duration / self.dT)) + 1
+
+    @property
+    def t(self) -> np.ndarray:
+        """Sample times, s, shape (n_samples,)."""
+        return self.dT * np.arange(self.n_samples)
+
+    def replace(self, **changes) -> "CoopParams":
+        """A copy with some fields changed (validated again)."""
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        unknown = set(changes) - set(values)
+        if unknown:
+            raise ValueError(f"changes must name fields of CoopParams, got {sorted(unknown)}")
+        values.update(changes)
+        return CoopParams(**values)
+
+
+def require_last_axis(name: str, array, n: int) -> np.ndarray:
+    """Return ``array`` as a float ndarray; raise unless its shape is (..., n) with finite entries."""
+    arr = np.asarray(array, dtype=float)
+    if arr.ndim < 1 or arr.shape[-1] != n:
+        raise ValueError(f"{name} must have shape (..., {n}), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must hold only finite numbers")
+    return arr
+
+
+# ---------------------------------------------------------------------------
+# Angles
+_TWO_PI = 2.0 * np.pi
+# the angle components as basic slices (much faster than index lists in the filters' inner loops)
+_STATE_ANGLE_SLICE = slice(2, 6, 3)
+_MEAS_ANGLE_SLICE = slice(0, 3, 2)
+
+
+def wrap_angle(a):
+    """Wrap angles (rad) to (-pi, pi]; any shape."""
+    return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), _TWO_PI)
+
+
+def _wrap_components(v, sl, copy=True):
+    v = np.array(v, dtype=float) if copy else v
+    v[..., sl] = np.pi - np.mod(np.pi - v[..., sl], _TWO_PI)
+    return v
+
+
+def wrap_state(x):
+    """Copy of states ``x`` (..., 6) with the headings wrapped to (-pi, pi]."""
+    return _wrap_components(x, _STATE_ANGLE_SLICE)
+
+
+def wrap_measurement(y):
+    """Copy of measurements ``y`` (..., 5) with the bearings wrapped to (-pi, pi]."""
+    return _wrap_components(y, _MEAS_ANGLE_SLICE)
+
+
+def state_add(x, dx):
+    """``x + dx`` for states (..., 6), headings wrapped (the UKF's ``state_add``)."""
+    return _wrap_components(np.add(x, dx, dtype=float), _STATE_ANGLE_SLICE, copy=False)
+
+
+def _weighted_mean(points, weights, sl):
+    """Weighted mean over axis -2 of ``points`` (..., m, n); circular mean for the slice ``sl``."""
+    points = np.asarray(points, dtype=float)
+    w = np.asarray(weights, dtype=float)
+    mean = np.matmul(w, points)
+    a = points[..., sl]
+    mean[..., sl] = np.arctan2(np.matmul(w, np.sin(a)), np.matmul(w, np.cos(a)))
+    return mean
+
+
+def state_mean(sigmas, weights):
+    """Weighted mean of state points (..., m, 6) with weights (m,); headings by circular mean."""
+    return _weighted_mean(sigmas, weights, _STATE_ANGLE_SLICE)
+
+
+def measurement_mean(sigmas, weights):
+    """Weighted mean of measurement points (..., m, 5); bearings by circular mean."""
+    return _weighted_mean(sigmas, weights, _MEAS_ANGLE_SLICE)
+
+
+def state_residual(a, b):
+    """``a - b`` for states (..., 6) with the heading differences wrapped (rad)."""
+    return _wrap_components(np.subtract(a, b, dtype=float), _STATE_ANGLE_SLICE, copy=False)
+
+
+def measurement_residual(a, b):
+    """``a - b`` for measurements (..., 5) with the bearing differences wrapped (rad)."""
+    return _wrap_components(np.subtract(a, b, dtype=float), _MEAS_ANGLE_SLICE, copy=False)
+
+
+# ---------------------------------------------------------------------------
+# Dynamics
+def _controls(u, L):
+    u = np.asarray(u, dtype=float)
+    vg, phi, va, wa = u[..., 0], u[..., 1], u[..., 2], u[..., 3]
+    return vg, vg * np.tan(phi) / L, va, wa
+
+
+def dynamics(x, u, L: float = 0.5):
+    """Continuous-time dynamics ``f(x, u)`` without noise, shape (..., 6) (m/s, rad/s)."""
+    x = np.asarray(x, dtype=float)
+    L = require_positive("L", L)
+    vg, wg, va, wa = _controls(u, L)
+    return np.stack(np.broadcast_arrays(vg * np.cos(x[..., 2]), vg * np.sin(x[..., 2]), wg,
+                                        va * np.cos(x[..., 5]), va * np.sin(x[..., 5]), wa), axis=-1)
+
+
+def _arc(x, u, dT, L):
+    """Closed-form flow of f over ``dT`` (s, scalar or array broadcast with x's leading axes)."""
+    vg, wg, va, wa = _controls(u, L)
+    cols = []
+    for i, v, w in ((0, vg, wg), (3, va, wa)):
+        th = x[..., i + 2]
+        half = 0.5 * w * dT
+        # chord of the arc: v dT sinc(w dT / 2) along the mean heading th + w dT / 2;
+        # np.sinc(z) = sin(pi z)/(pi z) is exact for the straight line w = 0.
+        d = v * dT * np.sinc(half / np.pi)
+        cols += [x[..., i] + d * np.cos(th + half), x[..., i + 1] + d * np.sin(th + half),
+                 wrap_angle(th + 2 * half)]
+    return np.stack(np.broadcast_arrays(*cols), axis=-1)
+
+
+def step(x, u, dT: float = 0.1, L: float = 0.5):
+    """Exact noise-free one-step map for a control held constant over ``dT`` (s).
+
+    Each vehicle moves on a circular arc (yaw rate ``v_g tan(phi_g)/L`` for the UGV,
+    ``omega_a`` for the UAV), or on a straight line when its yaw rate is zero.
+
+    Parameters
+    ----------
+    x : array (..., 6)   states at t
+    u : array (..., 4) or (4,)   controls held over [t, t + dT]
+    dT, L : float > 0   step, s; wheelbase, m
+
+    Returns
+    -------
+    array (..., 6): states at t + dT, headings wrapped.
+    """
+    return _arc(require_last_axis("x", x, N_STATES), require_last_axis("u", u, 4),
+                require_positive("dT", dT), require_positive("L", L))
+
+
+def nominal_trajectory(params: CoopParams | None = None, n_samples: int | None = None) -> np.ndarray:
+    """Nominal states at t_k = k dT from the closed-form arcs (no integration), shape (K, 6).
+
+    ``K = params.n_samples`` unless ``n_samples`` is given.
+    """
+    p = params if params is not None else CoopParams()
+    K = p.n_samples if n_samples is None else require_int("n_samples", n_samples, minimum=1)
+    t = p.dT * np.arange(K)
+    out = _arc(np.broadcast_to(p.x0, (t.size, N_STATES)), p.u0, t, p.L)
+    out[0] = wrap_state(p.x0)
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Measurements
+def _relative(x):
+    x = np.asarray(x, dtype=float)
+    dxi, deta = x[..., 3] - x[..., 0], x[..., 4] - x[..., 1]
+    r2 = dxi * dxi + deta * deta
+    if np.any(r2 == 0):
+        raise ValueError("x: the two vehicles are at the same position (range 0): bearings and their Jacobian are undefined")
+    return x, dxi, deta, r2
+
+
+def measure(x) -> np.ndarray:
+    """Noise-free measurement ``h(x)``, shape (..., 5): rad, m, rad, m, m (bearings wrapped)."""
+    x, dxi, deta, r2 = _relative(x)
+    return np.stack([wrap_angle(np.arctan2(deta, dxi) - x[..., 2]), np.sqrt(r2),
+                     wrap_angle(np.arctan2(-deta, -dxi) - x[..., 5]), x[..., 3], x[..., 4]], axis=-1)
+
+
+# ---------------------------------------------------------------------------
+# Jacobians
+def jacobian_A(x, u, L: float = 0.5) -> np.ndarray:
+    """CT state Jacobian ``A = df/dx`` at (x, u), shape (..., 6, 6) (1/s and m/(s rad))."""
+    x = np.asarray(x, dtype=float)
+    vg, _, va, _ = _controls(u, require_positive("L", L))
+    A = np.zeros(np.broadcast_shapes(x.shape[:-1], np.shape(vg)) + (6, 6))
+    A[..., 0, 2] = -vg * np.sin(x[..., 2])
+    A[..., 1, 2] = vg * np.cos(x[..., 2])
+    A[..., 3, 5] = -va * np.sin(x[..., 5])
+    A[..., 4, 5] = va * np.cos(x[..., 5])
+    return A
+
+
+def jacobian_B(x, u, L: float = 0.5) -> np.ndarray:
+    """CT input Jacobian ``B = df/du`` at (x, u), shape (..., 6, 4)."""
+    x = np.asarray(x, dtype=float)
+    u = np.asarray(u, dtype=float)
+    L = require_positive("L", L)
+    vg, phi = u[..., 0], u[..., 1]
+    B = np.zeros(np.broadcast_shapes(x.shape[:-1], u.shape[:-1]) + (6, 4))
+    B[..., 0, 0] = np.cos(x[..., 2])
+    B[..., 1, 0] = np.sin(x[..., 2])
+    B[..., 2, 0] = np.tan(phi) / L
+    B[..., 2, 1] = vg / (L * np.cos(phi) ** 2)
+    B[..., 3, 2] = np.cos(x[..., 5])
+    B[..., 4, 2] = np.sin(x[..., 5])
+    B[..., 5, 3] = 1.0
+    return B
+
+
+def jacobian_C(x) -> np.ndarray:
+    """Measurement Jacobian ``C = dh/dx`` at x, shape (..., 5, 6); raises at range 0."""
+    x, dxi, deta, r2 = _relative(x)
+    r = np.sqrt(r2)
+    C = np.zeros(x.shape[:-1] + (5, 6))
+    brg = np.stack([deta / r2, -dxi / r2, np.zeros_like(r), -deta / r2, dxi / r2, np.zeros_like(r)], axis=-1)
+    C[..., 0, :] = brg
+    C[..., 0, 2] = -1.0
+    C[..., 1, :] = np.stack([-dxi / r, -deta / r, np.zeros_like(r), dxi / r, deta / r, np.zeros_like(r)], axis=-1)
+    C[..., 2, :] = brg
+    C[..., 2, 5] = -1.0
+    C[..., 3, 3] = 1.0
+    C[..., 4, 4] = 1.0
+    return C
+
+
+def discretize(A, B, C, dT: float = 0.1):
+    """DT matrices ``F = I + dT A``, ``G = dT B``, ``H = C`` (A^2 = 0 for this model, so F = expm(A dT))."""
+    dT = require_positive("dT", dT)
+    A = np.asarray(A, dtype=float)
+    return np.eye(A.shape[-1]) + dT * A, dT * np.asarray(B, dtype=float), np.asarray(C, dtype=float)
+
+
+def observability_matrix(F, H) -> np.ndarray:
+    """Stacked observability matrix of a time-varying model over a window of m steps.
+
+    ``O = [H_0; H_1 F_0; H_2 F_1 F_0; ...; H_{m-1} F_{m-2} ... F_0]``.
+
+    Parameters
+    ----------
+    F : array (m-1, n, n) or (m, n, n)   transition matrices F_k (the last one unused if m)
+    H : array (m, p, n)                   measurement matrices H_k
+
+    Returns
+    -------
+    array (m p, n)
+    """
+    F = np.asarray(F, dtype=float)
+    H = np.asarray(H, dtype=float)
+    if H.ndim != 3 or F.ndim != 3 or F.shape[1:] != (H.shape[2], H.shape[2]) or F.shape[0] < H.shape[0] - 1:
+        raise ValueError(f"F must have shape (m-1, n, n) and H (m, p, n); got F {F.shape}, H {H.shape}")
+    Phi = np.eye(H.shape[2])
+    blocks = []
+    for k in range(H.shape[0]):
+        blocks.append(H[k] @ Phi)
+        if k < H.shape[0] - 1:
+            Phi = F[k] @ Phi
+    return np.vstack(blocks)

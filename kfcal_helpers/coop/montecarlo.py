@@ -1,0 +1,161 @@
+"""Truth-model tests: Monte Carlo NEES and NIS of any of the three filters.
+
+Each run draws a true initial state from N(x0, P0), simulates the truth with per-step
+process noise N(0, Qtrue) and measurements with noise N(0, Rtrue)
+(:mod:`~kfcal_helpers.coop.simulation`), and runs the filterpy filter of
+:mod:`~kfcal_helpers.coop.filters` on it.  All runs are drawn up front from one
+seeded generator, so the result does not depend on ``workers``.
+
+With N runs, the run-averaged NEES (dimension 6) and NIS (dimension 5) of a
+consistent filter lie in ``[chi2(alpha/2, N n)/N, chi2(1 - alpha/2, N n)/N]`` at each
+step with probability 1 - alpha (:func:`kfcal_helpers.consistency.chi2_bounds`).
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from multiprocessing import get_context
+
+import numpy as np
+
+from ..consistency import chi2_bounds, inside_fraction
+from ..progress import progress
+from ..validation import require_choice, require_int
+from .filters import FILTERS, run_filter
+from .model import N_MEAS, N_STATES, CoopParams
+from .simulation import simulate_measurements, simulate_truth
+
+__all__ = ["MonteCarloResult", "truth_model_test", "default_workers"]
+
+
+@dataclass(frozen=True, eq=False)
+class MonteCarloResult:
+    """NEES/NIS of N truth-model runs over K samples.
+
+    Attributes
+    ----------
+    filter : str; runs : int (N); alpha : float; every : int (measurement every ``every`` steps)
+    t : (K,) s
+    nees : (N, K); nis : (N, K) (NaN at steps without a measurement)
+    errors : (N, K, 6) truth - estimate, headings wrapped; sigma2 : (N, K, 6) 2 sqrt(diag P)
+    nees_bounds, nis_bounds : (lower, upper) for the run averages
+    """
+
+    filter: str
+    runs: int
+    alpha: float
+    every: int
+    t: np.ndarray
+    nees: np.ndarray
+    nis: np.ndarray
+    errors: np.ndarray
+    sigma2: np.ndarray
+    nees_bounds: tuple
+    nis_bounds: tuple
+
+    @property
+    def nees_mean(self) -> np.ndarray:
+        """Run-averaged NEES per step, (K,)."""
+        return self.nees.mean(axis=0)
+
+    @property
+    def nis_mean(self) -> np.ndarray:
+        """Run-averaged NIS per step, (K,), NaN at steps without a measurement."""
+        out = np.full(self.nis.shape[1], np.nan)
+        has = np.isfinite(self.nis).all(axis=0)
+        out[has] = self.nis[:, has].mean(axis=0)
+        return out
+
+    @property
+    def nees_inside_fraction(self) -> float:
+        """Share of the steps whose run-averaged NEES is inside ``nees_bounds``."""
+        return inside_fraction(self.nees_mean, *self.nees_bounds)
+
+    @property
+    def nis_inside_fraction(self) -> float:
+        """Share of the steps with a measurement whose run-averaged NIS is inside ``nis_bounds``."""
+        return inside_fraction(self.nis_mean, *self.nis_bounds)
+
+    @property
+    def rms_error(self) -> np.ndarray:
+        """RMS error over runs and steps, per state, (6,) in m or rad."""
+        return np.sqrt(np.mean(self.errors ** 2, axis=(0, 1)))
+
+    def summary(self) -> dict:
+        """Plain-Python summary (for JSON): bounds, inside fractions, time averages."""
+        return {
+            "filter": self.filter,
+            "runs": self.runs,
+            "steps": int(self.t.size),
+            "alpha": self.alpha,
+            "nees_bounds": list(self.nees_bounds),
+            "nis_bounds": list(self.nis_bounds),
+            "nees_inside_fraction": self.nees_inside_fraction,
+            "nis_inside_fraction": self.nis_inside_fraction,
+            "nees_time_average": float(self.nees_mean.mean()),
+            "nis_time_average": float(np.nanmean(self.nis_mean)),
+        }
+
+
+def default_workers() -> int:
+    """Worker processes for Monte Carlo runs: the ``KFCAL_WORKERS`` variable, else min(2, CPUs)."""
+    env = os.environ.get("KFCAL_WORKERS")
+    if env:
+        return require_int("KFCAL_WORKERS", int(env), minimum=1)
+    return max(1, min(2, os.cpu_count() or 1))
+
+
+def _one_run(task):
+    name, y, truth, params, kwargs = task
+    r = run_filter(name, y, params, truth=truth, **kwargs)
+    return r.nees, r.nis, r.errors(truth), r.sigma2
+
+
+def truth_model_test(name: str, n_runs: int = 50, seed: int = 0, params: CoopParams | None = None,
+                     alpha: float = 0.05, every: int = 1, workers: int | None = None,
+                     desc: str | None = None, **filter_kwargs) -> MonteCarloResult:
+    """Monte Carlo truth-model test of filter ``name`` ("lkf", "ekf" or "ukf").
+
+    Parameters
+    ----------
+    n_runs : int >= 1 -- N
+    seed : int -- seed of ``numpy.random.default_rng`` for all truths and measurements
+    params : CoopParams -- model, noise, duration (default: the SPEC's, 100 s)
+    alpha : float in (0, 1) -- significance of the two-sided chi-square tests
+    every : int >= 1 -- keep the measurements of every ``every``-th step only (NaN elsewhere)
+    workers : int >= 1 -- processes (default :func:`default_workers`); results do not depend on it
+    filter_kwargs : passed to :func:`~kfcal_helpers.coop.filters.run_filter`: Q, R, x0, P0, and for
+        the UKF ``beta``, ``kappa`` and ``ukf_alpha`` (the sigma-point alpha, renamed here because
+        ``alpha`` is the significance level)
+
+    Returns
+    -------
+    MonteCarloResult
+    """
+    name = require_choice("filter", name, FILTERS)
+    n_runs = require_int("n_runs", n_runs, minimum=1)
+    seed = require_int("seed", seed, minimum=0)
+    every = require_int("every", every, minimum=1)
+    workers = default_workers() if workers is None else require_int("workers", workers, minimum=1)
+    nees_bounds = chi2_bounds(N_STATES, n_runs, alpha)
+    nis_bounds = chi2_bounds(N_MEAS, n_runs, alpha)
+    if "ukf_alpha" in filter_kwargs:
+        filter_kwargs["alpha"] = filter_kwargs.pop("ukf_alpha")
+    p = params if params is not None else CoopParams()
+    rng = np.random.default_rng(seed)
+    truth = simulate_truth(p, rng, n_runs=n_runs)
+    y = simulate_measurements(truth, p, rng)
+    keep = np.zeros(p.n_samples, dtype=bool)
+    keep[::every] = True
+    y[:, ~keep, :] = np.nan
+    tasks = [(name, y[i], truth[i], p, filter_kwargs) for i in range(n_runs)]
+    desc = desc or f"{name.upper()} truth-model test"
+    if workers > 1 and n_runs > 1:
+        with ProcessPoolExecutor(max_workers=min(workers, n_runs), mp_context=get_context("fork")) as pool:
+            out = list(progress(pool.map(_one_run, tasks), total=n_runs, desc=desc))
+    else:
+        out = [_one_run(task) for task in progress(tasks, total=n_runs, desc=desc)]
+    nees, nis, err, sig = (np.stack(a) for a in zip(*out))
+    return MonteCarloResult(name, n_runs, float(alpha), every, p.t, nees, nis, err, sig, nees_bounds, nis_bounds)

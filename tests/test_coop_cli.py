@@ -1,0 +1,86 @@
+"""Command line ``python -m kfcal_helpers coop``: JSON keys, readable table, bad input (exit 2, one line)."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.io import savemat
+
+from kfcal_helpers.cli import main
+from kfcal_helpers.coop import CoopParams, generate_log, write_log_csv
+
+COURSE_LOG = Path(__file__).resolve().parents[2] / "shared/data/coop_localization"
+
+
+def _json(capsys, argv):
+    assert main(argv) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_generated_log_json(capsys):
+    out = _json(capsys, ["coop", "--filter", "ekf", "--json"])
+    for key in ("filter", "steps", "seconds", "nis_time_average", "nis_bounds"):
+        assert key in out
+    assert out["filter"] == "ekf" and out["steps"] == 1001 and len(out["nis_bounds"]) == 2
+    assert 3 < out["nis_time_average"] < 7
+
+
+def test_monte_carlo_json(capsys):
+    out = _json(capsys, ["coop", "--filter", "lkf", "--runs", "3", "--seed", "1", "--json"])
+    for key in ("filter", "steps", "seconds", "runs", "nees_bounds", "nis_bounds",
+                "nees_inside_fraction", "nis_inside_fraction"):
+        assert key in out
+    assert out["runs"] == 3 and 0 <= out["nees_inside_fraction"] <= 1
+
+
+def test_csv_log_and_every_table(capsys, tmp_path):
+    write_log_csv(generate_log(CoopParams(duration=5.0), seed=2), tmp_path / "log")
+    assert main(["coop", "--filter", "ukf", "--log", str(tmp_path / "log"), "--every", "10"]) == 0
+    text = capsys.readouterr().out
+    assert "nis_time_average" in text and "{" not in text
+    assert any(line.split() == ["measurements", "5"] for line in text.splitlines())
+
+
+@pytest.mark.skipif(not COURSE_LOG.is_dir(), reason="course log not present")
+def test_course_log_subprocess():
+    proc = subprocess.run([sys.executable, "-m", "kfcal_helpers", "coop", "--filter", "ekf", "--log", str(COURSE_LOG),
+                           "--q-scale", "0.1", "--json"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert out["nis_bounds"][0] <= out["nis_time_average"] <= out["nis_bounds"][1]
+
+
+def _bad_mat(tmp_path, **change):
+    lg = generate_log(CoopParams(duration=1.0), seed=1)
+    raw = {"ydata": lg.y.T, "tvec": lg.t[None, :], "Qtrue": lg.Qtrue, "Rtrue": lg.Rtrue}
+    raw.update(change)
+    for key in [k for k, v in raw.items() if v is None]:
+        del raw[key]
+    savemat(tmp_path / "bad.mat", raw)
+    return str(tmp_path / "bad.mat")
+
+
+@pytest.mark.parametrize("make_args, match", [
+    (lambda tmp: ["--log", str(tmp / "missing")], "path"),
+    (lambda tmp: ["--log", _bad_mat(tmp, ydata=np.zeros((3, 11)))], "ydata"),
+    (lambda tmp: ["--log", _bad_mat(tmp, Rtrue=None)], "Rtrue"),
+    (lambda tmp: ["--log", _bad_mat(tmp, Qtrue=np.eye(6) + np.eye(6, k=1))], "Qtrue must be symmetric"),
+    (lambda tmp: ["--log", _bad_mat(tmp, Rtrue=-np.eye(5))], "Rtrue must be positive definite"),
+    (lambda tmp: ["--q-scale", "0"], "q-scale"),
+    (lambda tmp: ["--runs", "0"], "runs"),
+    (lambda tmp: ["--runs", "2", "--log", str(tmp)], "--runs"),
+    (lambda tmp: ["--every", "0"], "every"),
+])
+def test_bad_input_exit_2_one_line(capsys, tmp_path, make_args, match):
+    assert main(["coop", "--filter", "ekf", *make_args(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and match in err
+
+
+def test_unknown_filter_is_usage_error():
+    proc = subprocess.run([sys.executable, "-m", "kfcal_helpers", "coop", "--filter", "pf"],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1

@@ -1,0 +1,156 @@
+"""LKF, EKF, UKF: shapes, predict-only steps, agreement, truth-model NEES/NIS, bad input."""
+
+import numpy as np
+import pytest
+
+from kfcal_helpers.consistency import chi2_bounds
+from kfcal_helpers.coop import (
+    CoopParams,
+    generate_log,
+    make_ekf,
+    measurement_residual,
+    run_filter,
+    truth_model_test,
+    tune_q_scale,
+)
+from kfcal_helpers.coop.filters import FilterSetup
+
+P = CoopParams()
+SHORT = P.replace(duration=20.0)
+
+
+@pytest.fixture(scope="module")
+def log():
+    return generate_log(SHORT, seed=11)
+
+
+@pytest.mark.parametrize("name", ["lkf", "ekf", "ukf"])
+def test_result_shapes_and_nan_rows(log, name):
+    r = run_filter(name, log.y, SHORT, truth=log.truth)
+    K = log.n_samples
+    assert r.x.shape == (K, 6) and r.P.shape == (K, 6, 6)
+    assert r.innovations.shape == (K, 5) and r.S.shape == (K, 5, 5) and r.nis.shape == (K,) and r.nees.shape == (K,)
+    assert np.isnan(r.nis[0]) and np.all(np.isfinite(r.nis[1:]))
+    assert np.all(np.isfinite(r.x)) and np.all(np.isfinite(r.nees))
+    # the innovation is the wrapped difference of the measurement and the prediction
+    assert np.allclose(r.innovations[1:], measurement_residual(log.y[1:], r.z_pred[1:]))
+
+
+@pytest.mark.parametrize("name", ["lkf", "ekf", "ukf"])
+def test_nan_column_is_predict_only(log, name):
+    y = log.y.copy()
+    y[50:80] = np.nan
+    r = run_filter(name, y, SHORT)
+    assert np.all(np.isnan(r.nis[50:80])) and np.all(np.isfinite(r.nis[80:]))
+    # without updates the uncertainty grows step by step
+    tr = np.trace(r.P[50:80], axis1=1, axis2=2)
+    assert np.all(np.diff(tr) > 0)
+    full = run_filter(name, log.y, SHORT)
+    assert np.array_equal(r.x[:50], full.x[:50])
+
+
+def test_ekf_predict_is_nonlinear():
+    setup = FilterSetup.build("ekf", np.full((2, 5), np.nan), P)
+    ekf = make_ekf(setup)
+    ekf.predict()
+    from kfcal_helpers.coop import step
+
+    assert np.allclose(ekf.x[:, 0], step(P.x0, P.u0, P.dT, P.L), atol=1e-12)
+    assert ekf.x.shape == (6, 1)
+
+
+def test_filters_agree_near_the_nominal():
+    """With tiny noise everything stays linear: LKF, EKF and UKF give the same estimates."""
+    quiet = SHORT.replace(Qtrue=1e-8 * np.eye(6), P0=1e-6 * np.eye(6))
+    lg = generate_log(quiet, seed=3)
+    xs = [run_filter(n, lg.y, quiet, Q=quiet.Qtrue).x for n in ("lkf", "ekf", "ukf")]
+    assert np.abs(xs[0] - xs[1]).max() < 1e-3 and np.abs(xs[1] - xs[2]).max() < 1e-3
+
+
+def test_unwrapped_innovation_breaks_nis(log):
+    """Wrapped innovations keep the NIS near 5; the raw difference across +-pi does not."""
+    r = run_filter("ekf", log.y, SHORT)
+    raw = log.y[1:] - r.z_pred[1:]
+    assert np.abs(raw[:, 0]).max() > np.pi  # the bearing crosses +-pi in this log
+    assert np.abs(r.innovations[:, 0][1:]).max() < np.pi
+
+
+@pytest.mark.parametrize("name", ["ekf", "ukf"])
+def test_truth_model_nees_nis_inside_bounds(name):
+    """Short seeded Monte Carlo: the tuned filters are consistent at most steps."""
+    mc = truth_model_test(name, n_runs=12, seed=5, params=P.replace(duration=15.0), workers=1)
+    assert mc.nees_bounds == chi2_bounds(6, 12, 0.05) and mc.nis_bounds == chi2_bounds(5, 12, 0.05)
+    assert mc.nees.shape == (12, 151) and mc.nis.shape == (12, 151)
+    assert mc.nees_inside_fraction > 0.8
+    assert mc.nis_inside_fraction > 0.8
+
+
+def test_lkf_truth_model_consistent_near_the_nominal():
+    """The LKF is consistent while the truth stays near the nominal (small process noise, short run)."""
+    near = P.replace(duration=10.0, Qtrue=0.01 * P.Qtrue)
+    mc = truth_model_test("lkf", n_runs=12, seed=5, params=near, workers=1)
+    assert mc.nees_inside_fraction > 0.8 and mc.nis_inside_fraction > 0.8
+
+
+def test_lkf_truth_model_fails_far_from_the_nominal():
+    """With the SPEC's per-step Qtrue the truth leaves the nominal and the LKF is inconsistent."""
+    mc = truth_model_test("lkf", n_runs=12, seed=5, params=P.replace(duration=30.0), workers=1)
+    assert mc.nees_mean[-50:].min() > mc.nees_bounds[1]
+
+
+def test_monte_carlo_does_not_depend_on_workers():
+    pp = P.replace(duration=3.0)
+    a = truth_model_test("ekf", n_runs=4, seed=2, params=pp, workers=1)
+    b = truth_model_test("ekf", n_runs=4, seed=2, params=pp, workers=2)
+    assert np.allclose(a.nees, b.nees) and np.allclose(a.nis, b.nis, equal_nan=True)
+
+
+def test_fewer_measurements_grow_the_covariance(log):
+    full = run_filter("ekf", log.y, SHORT)
+    sparse = run_filter("ekf", log.every(20).y, SHORT)
+    assert np.trace(sparse.P[-2]) > np.trace(full.P[-2])
+    assert np.isfinite(sparse.nis).sum() == len(range(20, log.n_samples, 20))
+
+
+def test_tune_q_scale_picks_truth_scale(log):
+    best, avg = tune_q_scale("ekf", log.y, [0.01, 1.0, 100.0], SHORT)
+    assert best == 1.0 and avg.shape == (3,) and avg[0] > avg[1] > avg[2]
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"Q": np.diag([1.0, 1, 1, 1, 1, -1])}, "Q must be positive definite"),
+    ({"Q": np.eye(6) + np.eye(6, k=1)}, "Q must be symmetric"),
+    ({"R": np.eye(4)}, "R must be a 5x5"),
+    ({"R": np.eye(5) + 0.5 * np.eye(5, k=1)}, "R must be symmetric"),
+    ({"P0": np.zeros((6, 6))}, "P0 must be positive definite"),
+    ({"x0": np.zeros(3)}, "x0 must"),
+])
+def test_filter_bad_input(log, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        run_filter("ekf", log.y, SHORT, **kwargs)
+
+
+def test_filter_bad_measurements(log):
+    with pytest.raises(ValueError, match="y must have shape"):
+        run_filter("lkf", log.y[:, :4], SHORT)
+    y = log.y.copy()
+    y[5, 1] = np.nan
+    with pytest.raises(ValueError, match="y rows must be all finite or all NaN"):
+        run_filter("ukf", y, SHORT)
+    with pytest.raises(ValueError, match="filter must be one of"):
+        run_filter("pf", log.y, SHORT)
+    with pytest.raises(ValueError, match="alpha must"):
+        run_filter("ukf", log.y, SHORT, alpha=0.0)
+    with pytest.raises(ValueError, match="n_runs must"):
+        truth_model_test("ekf", n_runs=0)
+
+
+def test_same_position_in_filter():
+    """An estimate where both vehicles coincide has no measurement Jacobian: ValueError, not NaN."""
+    y = np.full((3, 5), np.nan)
+    y[1] = [0.0, 10.0, 0.0, 10.0, 0.0]
+    with pytest.raises(ValueError, match="x: the two vehicles are at the same position"):
+        run_filter("ekf", y, P.replace(u0=np.zeros(4)), x0=np.array([10.0, 0, 0, 10.0, 0, 0]), P0=np.eye(6))
+    same = P.replace(x0=np.array([10.0, 0, 0, 10.0, 0, 0]), u0=np.zeros(4))
+    with pytest.raises(ValueError, match="x: the two vehicles are at the same position"):
+        run_filter("lkf", y, same)

@@ -1,0 +1,174 @@
+"""Model of the cooperative-localization problem: closed form, wrapping, Jacobians, observability."""
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from kfcal_helpers.coop import (
+    CoopParams,
+    discretize,
+    dynamics,
+    jacobian_A,
+    jacobian_B,
+    jacobian_C,
+    measure,
+    measurement_mean,
+    nominal_trajectory,
+    observability_matrix,
+    state_mean,
+    state_residual,
+    step,
+    wrap_angle,
+    wrap_state,
+)
+
+P = CoopParams()
+
+
+def _fd(fun, x0, eps=1e-6):
+    """Central finite-difference Jacobian of fun at x0 (residuals wrapped by the caller)."""
+    cols = []
+    for i in range(x0.size):
+        dx = np.zeros_like(x0)
+        dx[i] = eps
+        cols.append(fun(x0 + dx, x0 - dx) / (2 * eps))
+    return np.stack(cols, axis=-1)
+
+
+@pytest.fixture(scope="module")
+def random_states():
+    rng = np.random.default_rng(7)
+    xs = nominal_trajectory(P)[rng.integers(0, P.n_samples, 5)] + rng.normal(0, [3, 3, 1, 3, 3, 1], (5, 6))
+    return wrap_state(xs)
+
+
+def test_closed_form_matches_solve_ivp():
+    sol = solve_ivp(lambda t, x: dynamics(x, P.u0, P.L), (0, P.duration), P.x0, t_eval=P.t, rtol=1e-10, atol=1e-10)
+    err = np.abs(state_residual(sol.y.T, nominal_trajectory(P))).max()
+    assert err < 1e-6
+    # the one-step map applied repeatedly gives the same trajectory
+    x = P.x0.copy()
+    for _ in range(100):
+        x = step(x, P.u0, P.dT, P.L)
+    assert np.abs(state_residual(x, nominal_trajectory(P)[100])).max() < 1e-9
+
+
+def test_straight_line_limit():
+    u = np.array([2.0, 0.0, 12.0, 0.0])
+    x1 = step(P.x0, u, 1.0, P.L)
+    expected = P.x0 + np.array([2 * np.cos(np.pi / 2), 2.0, 0, 12 * np.cos(-np.pi / 2), -12.0, 0])
+    assert np.allclose(x1, expected, atol=1e-12)
+    # continuity: a tiny turn rate is close to the straight line
+    u_eps = np.array([2.0, 1e-12, 12.0, 1e-12])
+    assert np.allclose(step(P.x0, u_eps, 1.0, P.L), expected, atol=1e-9)
+
+
+def test_nominal_rates_from_spec():
+    wg = P.u0[0] * np.tan(P.u0[1]) / P.L
+    assert wg == pytest.approx(-0.7053, abs=1e-4)
+    assert P.u0[2] / P.u0[3] == pytest.approx(95.49, abs=0.01)
+
+
+@pytest.mark.parametrize("angle, wrapped", [(np.pi, np.pi), (-np.pi, np.pi), (3 * np.pi, np.pi),
+                                            (np.pi + 0.1, -np.pi + 0.1), (-np.pi - 0.1, np.pi - 0.1), (0.0, 0.0)])
+def test_wrap_angle_at_pi(angle, wrapped):
+    assert wrap_angle(angle) == pytest.approx(wrapped, abs=1e-12)
+
+
+def test_wrap_keeps_range_and_residual_is_short():
+    a = np.linspace(-20, 20, 4001)
+    w = wrap_angle(a)
+    assert np.all(w > -np.pi) and np.all(w <= np.pi)
+    assert np.allclose(np.cos(w), np.cos(a)) and np.allclose(np.sin(w), np.sin(a))
+    x1 = np.array([0, 0, np.pi - 0.05, 0, 0, -np.pi + 0.05])
+    x2 = np.array([0, 0, -np.pi + 0.05, 0, 0, np.pi - 0.05])
+    assert np.allclose(state_residual(x1, x2), [0, 0, -0.1, 0, 0, 0.1])
+
+
+def test_measurement_bearings_wrapped():
+    y = measure(nominal_trajectory(P))
+    assert np.all(np.abs(y[:, [0, 2]]) <= np.pi)
+    # the UGV circles every 8.9 s, so its bearing to the UAV crosses +-pi: jumps of ~2 pi
+    assert np.sum(np.abs(np.diff(y[:, 0])) > np.pi) > 5
+
+
+def test_circular_means_across_pi():
+    pts = np.zeros((2, 6))
+    pts[:, 2] = [np.pi - 0.1, -np.pi + 0.1]
+    assert abs(abs(state_mean(pts, np.array([0.5, 0.5]))[2]) - np.pi) < 1e-12
+    z = np.zeros((2, 5))
+    z[:, 0] = [np.pi - 0.2, -np.pi + 0.1]
+    assert measurement_mean(z, np.array([0.5, 0.5]))[0] == pytest.approx(np.pi - 0.05, abs=1e-12)
+
+
+def test_jacobians_against_finite_differences(random_states):
+    for x in random_states:
+        A = jacobian_A(x, P.u0, P.L)
+        A_fd = _fd(lambda a, b: dynamics(a, P.u0, P.L) - dynamics(b, P.u0, P.L), x)
+        assert np.abs(A - A_fd).max() < 1e-6
+        B = jacobian_B(x, P.u0, P.L)
+        B_fd = _fd(lambda a, b: dynamics(x, a, P.L) - dynamics(x, b, P.L), P.u0.copy())
+        assert np.abs(B - B_fd).max() < 1e-5
+        C = jacobian_C(x)
+        C_fd = _fd(_meas_diff, x)
+        assert np.abs(C - C_fd).max() < 1e-6
+    assert A.shape == (6, 6) and B.shape == (6, 4) and C.shape == (5, 6)
+
+
+def _meas_diff(a, b):
+    from kfcal_helpers.coop import measurement_residual
+
+    return measurement_residual(measure(a), measure(b))
+
+
+def test_discretization_is_matrix_exponential():
+    from scipy.linalg import expm
+
+    x = nominal_trajectory(P)[37]
+    A, B, C = jacobian_A(x, P.u0), jacobian_B(x, P.u0), jacobian_C(x)
+    F, G, H = discretize(A, B, C, P.dT)
+    assert np.allclose(F, expm(A * P.dT), atol=1e-14)
+    assert np.allclose(G, P.dT * B) and np.allclose(H, C)
+
+
+def test_observability_over_a_window():
+    xn = nominal_trajectory(P)[:10]
+    F = np.eye(6) + P.dT * jacobian_A(xn, P.u0)
+    H = jacobian_C(xn)
+    assert np.linalg.matrix_rank(observability_matrix(F[:1], H[:1])) == 5
+    assert np.linalg.matrix_rank(observability_matrix(F[:9], H)) == 6
+    with pytest.raises(ValueError, match="F must"):
+        observability_matrix(F[:2], H[:5, :, :])
+
+
+def test_params_bad_input():
+    with pytest.raises(ValueError, match="L must"):
+        CoopParams(L=0)
+    with pytest.raises(ValueError, match="dT must"):
+        CoopParams(dT=-0.1)
+    with pytest.raises(ValueError, match="Qtrue must be symmetric"):
+        CoopParams(Qtrue=np.diag([1.0] * 6) + np.triu(np.ones((6, 6)), 1) * 0.1)
+    with pytest.raises(ValueError, match="Rtrue must be positive definite"):
+        CoopParams(Rtrue=np.diag([1.0, 1.0, -1.0, 1.0, 1.0]))
+    with pytest.raises(ValueError, match="x0 must"):
+        CoopParams(x0=np.zeros(5))
+    with pytest.raises(ValueError, match="duration must"):
+        CoopParams(duration=0.05)
+    with pytest.raises(ValueError, match="L must"):
+        step(P.x0, P.u0, 0.1, L=0.0)
+    with pytest.raises(ValueError, match="x must"):
+        step(np.zeros(5), P.u0)
+
+
+def test_same_position_raises():
+    x = np.array([1.0, 2.0, 0.3, 1.0, 2.0, -0.4])
+    with pytest.raises(ValueError, match="x: the two vehicles are at the same position"):
+        jacobian_C(x)
+    with pytest.raises(ValueError, match="x: "):
+        measure(x)
+
+
+def test_params_are_read_only():
+    with pytest.raises(ValueError):
+        P.Qtrue[0, 0] = 1.0
+    assert P.replace(L=1.0).L == 1.0 and P.L == 0.5
