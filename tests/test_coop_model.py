@@ -172,3 +172,13 @@ def test_params_are_read_only():
     with pytest.raises(ValueError):
         P.Qtrue[0, 0] = 1.0
     assert P.replace(L=1.0).L == 1.0 and P.L == 0.5
+
+
+def test_wrap_one_vector_matches_the_array_path():
+    """wrap_state has a fast path for single vectors: same convention (-pi, pi] as for arrays."""
+    rng = np.random.default_rng(1)
+    xs = rng.uniform(-20, 20, (200, 6))
+    xs[0, [2, 5]] = [np.pi, -np.pi]
+    rows = np.array([wrap_state(x) for x in xs])
+    assert np.allclose(rows, wrap_state(xs), atol=1e-12, rtol=0)
+    assert rows[0, 2] == np.pi and rows[0, 5] == np.pi

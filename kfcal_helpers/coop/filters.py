@@ -258,12 +258,12 @@ def run_ekf(y, params=None, Q=None, R=None, x0=None, P0=None, truth=None,
         if k > 0:
             ekf.predict()
         if not np.isnan(s.y[k, 0]):
-            zp[k] = measure(ekf.x[:, 0])
             ekf.update(s.y[k].reshape(N_MEAS, 1), HJacobian=_C_column, Hx=_h_column,
                        residual=_residual_column if wrap_innovations else np.subtract)
             assert ekf.x.shape == (N_STATES, 1) and ekf.y.shape == (N_MEAS, 1)
             ekf.x = wrap_state(ekf.x[:, 0]).reshape(N_STATES, 1)
             nu[k], S[k] = ekf.y[:, 0], ekf.S
+            zp[k] = measurement_residual(s.y[k], nu[k])  # h(x-), from y - nu
         x[k], P[k] = ekf.x[:, 0], ekf.P
     return _finish("ekf", s, x, P, zp, nu, S, truth)
 

@@ -13,6 +13,7 @@ Every function accepts arrays with leading axes: ``x`` of shape (..., 6),
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -156,7 +157,11 @@ def wrap_angle(a):
 
 def _wrap_components(v, sl, copy=True):
     v = np.array(v, dtype=float) if copy else v
-    v[..., sl] = np.pi - np.mod(np.pi - v[..., sl], _TWO_PI)
+    if v.ndim == 1:  # one vector (the UKF calls this ~50 times a step): Python floats are faster
+        for i in range(sl.start, sl.stop, sl.step):
+            v[i] = math.pi - (math.pi - float(v[i])) % _TWO_PI
+    else:
+        v[..., sl] = np.pi - np.mod(np.pi - v[..., sl], _TWO_PI)
     return v
 
 
@@ -225,16 +230,19 @@ def dynamics(x, u, L: float = 0.5):
 def _arc(x, u, dT, L):
     """Closed-form flow of f over ``dT`` (s, scalar or array broadcast with x's leading axes)."""
     vg, wg, va, wa = _controls(u, L)
-    cols = []
+    shape = np.broadcast_shapes(x.shape[:-1], np.shape(dT), np.shape(vg))
+    out = np.empty(shape + (N_STATES,))
     for i, v, w in ((0, vg, wg), (3, va, wa)):
         th = x[..., i + 2]
         half = 0.5 * w * dT
         # chord of the arc: v dT sinc(w dT / 2) along the mean heading th + w dT / 2;
         # np.sinc(z) = sin(pi z)/(pi z) is exact for the straight line w = 0.
         d = v * dT * np.sinc(half / np.pi)
-        cols += [x[..., i] + d * np.cos(th + half), x[..., i + 1] + d * np.sin(th + half),
-                 wrap_angle(th + 2 * half)]
-    return np.stack(np.broadcast_arrays(*cols), axis=-1)
+        mid = th + half
+        out[..., i] = x[..., i] + d * np.cos(mid)
+        out[..., i + 1] = x[..., i + 1] + d * np.sin(mid)
+        out[..., i + 2] = mid + half
+    return _wrap_components(out, _STATE_ANGLE_SLICE, copy=False)
 
 
 def step(x, u, dT: float = 0.1, L: float = 0.5):
@@ -284,8 +292,13 @@ def _relative(x):
 def measure(x) -> np.ndarray:
     """Noise-free measurement ``h(x)``, shape (..., 5): rad, m, rad, m, m (bearings wrapped)."""
     x, dxi, deta, r2 = _relative(x)
-    return np.stack([wrap_angle(np.arctan2(deta, dxi) - x[..., 2]), np.sqrt(r2),
-                     wrap_angle(np.arctan2(-deta, -dxi) - x[..., 5]), x[..., 3], x[..., 4]], axis=-1)
+    y = np.empty(x.shape[:-1] + (N_MEAS,))
+    bearing = np.arctan2(deta, dxi)
+    y[..., 0] = bearing - x[..., 2]
+    y[..., 1] = np.sqrt(r2)
+    y[..., 2] = bearing + np.pi - x[..., 5]  # atan2(-deta, -dxi) = atan2(deta, dxi) + pi (mod 2 pi)
+    y[..., 3:5] = x[..., 3:5]
+    return _wrap_components(y, _MEAS_ANGLE_SLICE, copy=False)
 
 
 # ---------------------------------------------------------------------------
@@ -323,13 +336,18 @@ def jacobian_C(x) -> np.ndarray:
     """Measurement Jacobian ``C = dh/dx`` at x, shape (..., 5, 6); raises at range 0."""
     x, dxi, deta, r2 = _relative(x)
     r = np.sqrt(r2)
-    C = np.zeros(x.shape[:-1] + (5, 6))
-    brg = np.stack([deta / r2, -dxi / r2, np.zeros_like(r), -deta / r2, dxi / r2, np.zeros_like(r)], axis=-1)
-    C[..., 0, :] = brg
+    C = np.zeros(x.shape[:-1] + (N_MEAS, N_STATES))
+    for row in (0, 2):  # both bearings have the same position derivatives
+        C[..., row, 0] = deta / r2
+        C[..., row, 1] = -dxi / r2
+        C[..., row, 3] = -deta / r2
+        C[..., row, 4] = dxi / r2
     C[..., 0, 2] = -1.0
-    C[..., 1, :] = np.stack([-dxi / r, -deta / r, np.zeros_like(r), dxi / r, deta / r, np.zeros_like(r)], axis=-1)
-    C[..., 2, :] = brg
     C[..., 2, 5] = -1.0
+    C[..., 1, 0] = -dxi / r
+    C[..., 1, 1] = -deta / r
+    C[..., 1, 3] = dxi / r
+    C[..., 1, 4] = deta / r
     C[..., 3, 3] = 1.0
     C[..., 4, 4] = 1.0
     return C
