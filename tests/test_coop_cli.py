@@ -10,7 +10,8 @@ import pytest
 from scipy.io import savemat
 
 from kfcal_helpers.cli import main
-from kfcal_helpers.coop import CoopParams, generate_log, write_log_csv
+from kfcal_helpers.coop import TUNED_Q_SCALE, CoopParams, generate_log, write_log_csv
+from kfcal_helpers.coop.cli import Q_SCALE_LADDER
 
 COURSE_LOG = Path(__file__).resolve().parents[2] / "shared/data/coop_localization"
 
@@ -46,11 +47,29 @@ def test_csv_log_and_every_table(capsys, tmp_path):
 
 @pytest.mark.skipif(not COURSE_LOG.is_dir(), reason="course log not present")
 def test_course_log_subprocess():
+    """The default for a course log tunes Q by NIS on it: the NIS lands inside its bounds."""
     proc = subprocess.run([sys.executable, "-m", "kfcal_helpers", "coop", "--filter", "ekf", "--log", str(COURSE_LOG),
-                           "--q-scale", "0.1", "--json"], capture_output=True, text=True, timeout=120)
+                           "--json"], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout)
+    assert out["q_scale_source"] == "tuned by NIS on this log" and out["q_scale"] in Q_SCALE_LADDER
     assert out["nis_bounds"][0] <= out["nis_time_average"] <= out["nis_bounds"][1]
+
+
+def test_q_scale_choices(capsys, tmp_path):
+    """Generated log: the truth-model-tuned scale by default; 'auto' picks the ladder scale whose NIS is
+    closest to 5; a given number is used as given."""
+    out = _json(capsys, ["coop", "--filter", "ekf", "--json"])
+    assert out["q_scale"] == TUNED_Q_SCALE["ekf"] and out["q_scale_source"] == "truth-model tuning"
+    write_log_csv(generate_log(CoopParams(duration=20.0), seed=3), tmp_path / "log")
+    auto = _json(capsys, ["coop", "--filter", "ekf", "--log", str(tmp_path / "log"), "--json"])
+    assert auto["q_scale_source"] == "tuned by NIS on this log"
+    dist = {}
+    for s in Q_SCALE_LADDER:
+        given = _json(capsys, ["coop", "--filter", "ekf", "--log", str(tmp_path / "log"), "--q-scale", str(s), "--json"])
+        assert given["q_scale"] == s and given["q_scale_source"] == "given"
+        dist[s] = abs(np.log(given["nis_time_average"] / 5))
+    assert auto["q_scale"] == min(dist, key=dist.get)
 
 
 def _bad_mat(tmp_path, **change):
@@ -70,6 +89,8 @@ def _bad_mat(tmp_path, **change):
     (lambda tmp: ["--log", _bad_mat(tmp, Qtrue=np.eye(6) + np.eye(6, k=1))], "Qtrue must be symmetric"),
     (lambda tmp: ["--log", _bad_mat(tmp, Rtrue=-np.eye(5))], "Rtrue must be positive definite"),
     (lambda tmp: ["--q-scale", "0"], "q-scale"),
+    (lambda tmp: ["--q-scale", "big"], "q-scale must be a positive number or 'auto'"),
+    (lambda tmp: ["--q-scale", "auto", "--runs", "2"], "q-scale 'auto'"),
     (lambda tmp: ["--runs", "0"], "runs"),
     (lambda tmp: ["--runs", "2", "--log", str(tmp)], "--runs"),
     (lambda tmp: ["--every", "0"], "every"),

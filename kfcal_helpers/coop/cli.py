@@ -5,6 +5,12 @@ Examples::
     python -m kfcal_helpers coop --filter ekf                   # the generated (seeded) log
     python -m kfcal_helpers coop --filter ukf --log ../shared/data/coop_localization
     python -m kfcal_helpers coop --filter lkf --runs 50 --seed 1 --json
+
+The filter's process noise is ``Q = S * Qtrue``.  By default S is the filter's scale tuned by
+the truth-model tests (``TUNED_Q_SCALE``) for the generated log and the Monte Carlo, and is
+tuned by NIS on the log itself for a course log (``--q-scale auto``: the scale of
+``Q_SCALE_LADDER`` whose time-averaged NIS is closest to its expected value 5), because a
+course log need not follow the Qtrue it ships with.
 """
 
 from __future__ import annotations
@@ -17,12 +23,26 @@ import numpy as np
 from ..consistency import chi2_bounds
 from ..validation import require_int, require_positive
 from .data import load_log
-from .filters import FILTERS, TUNED_Q_SCALE, run_filter
+from .filters import FILTERS, TUNED_Q_SCALE, run_filter, tune_q_scale
 from .model import N_MEAS, CoopParams
 from .montecarlo import truth_model_test
 from .simulation import DEFAULT_LOG_SEED, generate_log
 
-__all__ = ["add_parser", "run", "log_summary"]
+__all__ = ["add_parser", "run", "log_summary", "Q_SCALE_LADDER", "parse_q_scale"]
+
+#: candidate scales S of Q = S * Qtrue for ``--q-scale auto`` (a 1-2-5 ladder)
+Q_SCALE_LADDER = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0)
+
+
+def parse_q_scale(text):
+    """``None`` (the default), ``"auto"`` or a positive float; raise ValueError otherwise."""
+    if text is None or text == "auto":
+        return text
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        raise ValueError(f"q-scale must be a positive number or 'auto', got {text!r}") from None
+    return require_positive("q-scale", value)
 
 
 def add_parser(subparsers):
@@ -34,8 +54,9 @@ def add_parser(subparsers):
     p.add_argument("--runs", type=int, metavar="N", help="run an N-run truth-model Monte Carlo instead of a log")
     p.add_argument("--seed", type=int, default=None,
                    help=f"seed of the generated log (default {DEFAULT_LOG_SEED}) or of the Monte Carlo (default 0)")
-    p.add_argument("--q-scale", type=float, default=None, metavar="S",
-                   help="filter Q = S * Qtrue (default: the tuned scale of the filter)")
+    p.add_argument("--q-scale", default=None, metavar="S",
+                   help="filter Q = S * Qtrue: a positive number, or 'auto' to tune S by NIS on the log "
+                        "(default: auto for --log, else the filter's truth-model-tuned scale)")
     p.add_argument("--every", type=int, default=1, metavar="M", help="use the measurements of every M-th step only")
     p.add_argument("--alpha", type=float, default=0.05, help="significance of the chi-square tests (default 0.05)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -59,17 +80,21 @@ def log_summary(result, alpha: float = 0.05) -> dict:
 def run(args) -> int:
     """Run the sub-command; returns the exit code (ValueError for bad input)."""
     every = require_int("every", args.every, minimum=1)
+    q_scale = parse_q_scale(args.q_scale)
     t0 = time.perf_counter()
     if args.runs is not None:
         if args.log is not None:
             raise ValueError("--runs: a truth-model Monte Carlo simulates its own data; do not give --log with it")
         runs = require_int("runs", args.runs, minimum=1)
+        if q_scale == "auto":
+            raise ValueError("q-scale 'auto' tunes on a log; a truth-model Monte Carlo needs a number or the default")
         params = CoopParams()
-        kwargs = {} if args.q_scale is None else {"Q": require_positive("q-scale", args.q_scale) * params.Qtrue}
+        scale = TUNED_Q_SCALE[args.filter] if q_scale is None else q_scale
         mc = truth_model_test(args.filter, runs, seed=0 if args.seed is None else args.seed, params=params,
-                              alpha=args.alpha, every=every, **kwargs)
+                              alpha=args.alpha, every=every, Q=scale * params.Qtrue)
         out = mc.summary()
-        out["q_scale"] = TUNED_Q_SCALE[args.filter] if args.q_scale is None else args.q_scale
+        out["q_scale"] = scale
+        out["q_scale_source"] = "truth-model tuning" if q_scale is None else "given"
     else:
         if args.log is not None:
             log = load_log(args.log)
@@ -78,11 +103,19 @@ def run(args) -> int:
         if every > 1:
             log = log.every(every)
         params = log.params()
-        scale = TUNED_Q_SCALE[args.filter] if args.q_scale is None else require_positive("q-scale", args.q_scale)
+        if q_scale is None:
+            q_scale = "auto" if args.log is not None else TUNED_Q_SCALE[args.filter]
+        if q_scale == "auto":
+            scale, _ = tune_q_scale(args.filter, log.y, Q_SCALE_LADDER, params)
+            source = "tuned by NIS on this log"
+        else:
+            scale = q_scale
+            source = "truth-model tuning" if args.q_scale is None else "given"
         result = run_filter(args.filter, log.y, params, Q=scale * params.Qtrue, truth=log.truth)
         if not np.all(np.isfinite(result.x)):
             raise ValueError(f"log: the {args.filter.upper()} diverged (non-finite estimate)")
         out = {"filter": args.filter, "steps": int(log.n_samples), "source": log.source, "q_scale": scale,
+               "q_scale_source": source,
                "every": every, **log_summary(result, args.alpha)}
     out["seconds"] = time.perf_counter() - t0
     if args.json:
