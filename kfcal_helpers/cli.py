@@ -1,7 +1,8 @@
 """Command line: ``python -m kfcal_helpers <command> [options]``.
 
 Each problem registers its sub-command through two functions in its own
-``cli`` module: ``add_parser(subparsers)`` and ``run(args) -> int``.  Any
+``cli`` module: ``add_parser(subparsers)`` and ``run(args) -> int``; the lecture
+figures of both problems (``figures``) are registered from :mod:`kfcal_helpers.figures`.  Any
 ``ValueError`` (bad input) becomes one line on stderr and exit status 2.
 """
 
@@ -21,6 +22,7 @@ class OneLineParser(argparse.ArgumentParser):
 
 
 def _build_parser() -> argparse.ArgumentParser:
+    from . import figures as figures_cli
     from .calibration import cli as calibration_cli
     from .coop import cli as coop_cli
 
@@ -28,6 +30,7 @@ def _build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     calibration_cli.add_parser(sub)
     coop_cli.add_parser(sub)
+    figures_cli.add_parser(sub)
     return parser
 
 

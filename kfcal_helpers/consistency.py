@@ -9,12 +9,14 @@ with N replaced by the number of time steps K bounds the time average of one run
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 from scipy import stats
 
 from .validation import require_finite, require_int
 
-__all__ = ["chi2_bounds", "normalized_squares", "nees", "nis", "inside_fraction"]
+__all__ = ["chi2_bounds", "normalized_squares", "nees", "nis", "inside_fraction", "Check"]
 
 
 def chi2_bounds(dim: int, n_samples: int, alpha: float = 0.05) -> tuple[float, float]:
@@ -82,3 +84,48 @@ def inside_fraction(values, lower, upper) -> float:
         raise ValueError("values must hold at least one finite entry")
     inside = (values >= lower) & (values <= upper)
     return float(inside[ok].mean())
+
+
+@dataclass
+class Check:
+    """One statistical check.
+
+    statistic, expected : 1-D arrays, one entry per judged quantity (see the module docstring)
+    lower, upper : the pointwise band at significance ``alpha`` (about ``1 - alpha``
+        of the entries of a consistent filter fall inside)
+    sim_lower, sim_upper : the simultaneous band (Bonferroni: significance
+        ``alpha / (entries x checks)`` per entry), which a consistent filter leaves
+        nowhere, in all the checks of a test together, with probability at least
+        ``1 - alpha`` whatever the correlation between entries
+    inside_fraction : share of entries inside the pointwise band
+    worst : largest ``|statistic - expected|`` as a multiple of the distance from
+        ``expected`` to the simultaneous bound on that side (> 1 means outside)
+    """
+
+    name: str
+    description: str
+    statistic: np.ndarray
+    expected: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    sim_lower: np.ndarray
+    sim_upper: np.ndarray
+    inside_fraction: float = field(init=False)
+    worst: float = field(init=False)
+
+    def __post_init__(self):
+        arrays = [np.ravel(a) for a in (self.statistic, self.expected, self.lower, self.upper,
+                                       self.sim_lower, self.sim_upper)]
+        self.statistic, self.expected, self.lower, self.upper, self.sim_lower, self.sim_upper = arrays
+        s, c, lo, hi, slo, shi = arrays
+        self.inside_fraction = float(np.mean((s >= lo) & (s <= hi)))
+        dev = s - c
+        half = np.where(dev >= 0, shi - c, c - slo)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = np.where(dev == 0, 0.0, np.abs(dev) / half)
+        self.worst = float(np.max(ratio))
+
+    @property
+    def passed(self) -> bool:
+        """Pass when every entry is inside the simultaneous band (``worst <= 1``)."""
+        return self.worst <= 1.0

@@ -6,15 +6,13 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
-
 from ..validation import require_int
 from .montecarlo import CHECK_NAMES, ENGINES, format_checks, run_monte_carlo
 from .outages import outage_mask, parse_outage
 from .params import CalibrationParams
 from .simulation import TRUTH_MODELS
 
-__all__ = ["add_parser", "run", "result_to_dict"]
+__all__ = ["add_parser", "run", "result_to_dict", "write_figures", "figure_case", "FIGURE_FILES"]
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -32,14 +30,20 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--truth", choices=TRUTH_MODELS, default="euler", help="truth model (default euler)")
     p.add_argument("--outage", action="append", default=[], metavar="START:END",
                    help="GPS outage in seconds, fixes with START <= t < END are missing (repeatable)")
-    p.add_argument("--figures", metavar="DIR", help="also write the notebook-5 and notebook-6 figures as PNG")
+    p.add_argument("--figures", metavar="DIR",
+                   help="also write the notebook-5 and notebook-6 figures as PNG in the slides style (one "
+                        "realization with the same outages, and the Monte Carlo checks)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     p.set_defaults(run=run)
     return p
 
 
-def result_to_dict(mc) -> dict:
-    """The JSON summary of a MonteCarloResult."""
+def result_to_dict(mc, outages=()) -> dict:
+    """The JSON summary of a MonteCarloResult.
+
+    outages : the GPS outage windows ``(start, end)`` in seconds the run used (key ``outages``,
+    a list of ``[start, end]``, empty without outages).
+    """
     checks = mc.checks()
     out = {
         "runs": mc.n_runs,
@@ -47,6 +51,7 @@ def result_to_dict(mc) -> dict:
         "truth": mc.truth,
         "seconds": mc.seconds,
         "alpha": mc.alpha,
+        "outages": [[float(start), float(end)] for start, end in outages],
         "sigma_final": mc.sigma_final.tolist(),
         "ensemble_sigma_final": mc.ensemble_sigma_final.tolist(),
         "checks": {},
@@ -60,43 +65,65 @@ def result_to_dict(mc) -> dict:
     return out
 
 
-def write_figures(mc, directory) -> list[Path]:
-    """Write the notebook-5 (one realization) and notebook-6 (checks) figures as PNG."""
-    import matplotlib
+#: file stem of each ``--figures`` file -> the lecture figure (kfcal_helpers.figures.FIGURES) it draws
+FIGURE_FILES = {"calibration_errors": "calib_errors", "calibration_sigma_sawtooth": "calib_sigma_sawtooth",
+                "calibration_checks": None}
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    from .filters import run_filterpy
-    from .plots import plot_checks, plot_covariance_sawtooth, plot_estimate_errors
-    from .simulation import simulate
+def figure_case(mc, seed: int = 0):
+    """The scenario ``--figures`` draws: ``mc``'s parameters, truth model and missing fixes (outages),
+    and one realization seeded with ``seed`` whose fixes inside the outages are missing, as in the
+    Monte Carlo (a :class:`kfcal_helpers.figures.CalibrationCase`)."""
+    from ..figures import CalibrationCase
 
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    sim = simulate(mc.params, 1, np.random.default_rng(0), truth=mc.truth)
-    fr = run_filterpy(mc.params, sim.dz[0])
-    written = []
-    for name, fig in (("calibration_errors.png", plot_estimate_errors(mc.params, sim.dx[0], fr)),
-                      ("calibration_sigma_sawtooth.png", plot_covariance_sawtooth(mc.params, fr)),
-                      ("calibration_checks.png", plot_checks(mc))):
-        path = directory / name
-        fig.savefig(path, dpi=150)
-        plt.close(fig)
-        written.append(path)
-    return written
+    return CalibrationCase.from_monte_carlo(mc, seed=seed)
+
+
+def _all_checks(data):
+    """The six checks in one figure: slide width, 1.5 slide heights (1280 x 1080 px), for three rows."""
+    import matplotlib as mpl
+
+    from .plots import plot_checks
+
+    width, height = mpl.rcParams["figure.figsize"]
+    return plot_checks(data.calibration.mc, figsize=(width, 1.5 * height))
+
+
+def write_figures(mc, directory, seed: int = 0) -> list[Path]:
+    """Write the notebook-5 figures of one realization (errors with ±1σ/±2σ, the σ sawtooth;
+    1280 x 720 px) and the notebook-6 Monte Carlo checks (1280 x 1080 px) as PNG in the slides
+    style into ``directory`` (created if needed; ValueError naming ``--figures`` if it is a file).
+
+    The realization (seeded with ``seed``) has the same missing fixes as ``mc`` (its outages,
+    shaded in the figures).  The first two are the lecture figures ``calib_errors`` and
+    ``calib_sigma_sawtooth`` of :mod:`kfcal_helpers.figures`.  Returns the paths written.
+    """
+    from ..figures import FIGURES, FigureData, LectureFigure, save_figures
+
+    by_name = {f.name: f for f in FIGURES}
+    entries = [LectureFigure(stem, by_name[name].description, by_name[name].make) if name else
+               LectureFigure(stem, "the six Monte Carlo checks", _all_checks)
+               for stem, name in FIGURE_FILES.items()]
+    data = FigureData(calibration=figure_case(mc, seed))
+    return save_figures(entries, directory, data, argname="--figures")
 
 
 def run(args) -> int:
     require_int("--runs", args.runs, minimum=2)
+    if args.figures is not None:
+        from ..figures import check_directory, use_agg_backend
+
+        check_directory(args.figures, "--figures")  # before the Monte Carlo, not after it
+        use_agg_backend()
     params = CalibrationParams(omega=args.omega, imu_rate=args.imu_rate, gps_rate=args.gps_rate,
                                duration=args.duration)
     windows = [parse_outage(text, "--outage") for text in args.outage]
     missing = outage_mask(params, windows, name="--outage") if windows else None
     mc = run_monte_carlo(params, n_runs=args.runs, seed=args.seed, engine=args.engine,
                          truth=args.truth, progress=None, missing_fixes=missing)
-    written = write_figures(mc, args.figures) if args.figures else []
+    written = write_figures(mc, args.figures, seed=args.seed) if args.figures else []
     if args.json:
-        d = result_to_dict(mc)
+        d = result_to_dict(mc, windows)
         if written:
             d["figures"] = [str(p) for p in written]
         print(json.dumps(d))

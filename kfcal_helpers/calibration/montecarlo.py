@@ -30,12 +30,12 @@ consistent filter.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
 
-from ..consistency import chi2_bounds
+from ..consistency import Check, chi2_bounds
 from ..progress import progress as _progress
 from ..validation import require_choice, require_finite, require_int
 from .error_model import ErrorStateModel
@@ -50,51 +50,6 @@ CHUNK_SIZE = 500  #: realizations simulated together (fixed, so results do not d
 ENGINES = ("batch", "filterpy")
 CHECK_NAMES = ("mean_error", "covariance", "orthogonality", "residual_independence",
                "residual_variance", "nees", "nis")
-
-
-@dataclass
-class Check:
-    """One statistical check.
-
-    statistic, expected : 1-D arrays, one entry per judged quantity (see the module docstring)
-    lower, upper : the pointwise band at significance ``alpha`` (about ``1 - alpha``
-        of the entries of a consistent filter fall inside)
-    sim_lower, sim_upper : the simultaneous band (Bonferroni: significance
-        ``alpha / (entries x checks)`` per entry), which a consistent filter leaves
-        nowhere, in all seven checks together, with probability at least
-        ``1 - alpha`` whatever the correlation between entries
-    inside_fraction : share of entries inside the pointwise band
-    worst : largest ``|statistic - expected|`` as a multiple of the distance from
-        ``expected`` to the simultaneous bound on that side (> 1 means outside)
-    """
-
-    name: str
-    description: str
-    statistic: np.ndarray
-    expected: np.ndarray
-    lower: np.ndarray
-    upper: np.ndarray
-    sim_lower: np.ndarray
-    sim_upper: np.ndarray
-    inside_fraction: float = field(init=False)
-    worst: float = field(init=False)
-
-    def __post_init__(self):
-        arrays = [np.ravel(a) for a in (self.statistic, self.expected, self.lower, self.upper,
-                                       self.sim_lower, self.sim_upper)]
-        self.statistic, self.expected, self.lower, self.upper, self.sim_lower, self.sim_upper = arrays
-        s, c, lo, hi, slo, shi = arrays
-        self.inside_fraction = float(np.mean((s >= lo) & (s <= hi)))
-        dev = s - c
-        half = np.where(dev >= 0, shi - c, c - slo)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = np.where(dev == 0, 0.0, np.abs(dev) / half)
-        self.worst = float(np.max(ratio))
-
-    @property
-    def passed(self) -> bool:
-        """Pass when every entry is inside the simultaneous band (``worst <= 1``)."""
-        return self.worst <= 1.0
 
 
 @dataclass
@@ -176,8 +131,10 @@ class MonteCarloResult:
         stat[:, ~diag] /= np.sqrt(Ekk[:, iu[0][~diag]] * Ekk[:, iu[1][~diag]])
         expected[:, ~diag] /= np.sqrt(Pkk[:, iu[0][~diag]] * Pkk[:, iu[1][~diag]])
         fisher = z / np.sqrt(N - 3) if N > 3 else np.inf
-        lo = np.tanh(np.arctanh(expected) - fisher)
-        hi = np.tanh(np.arctanh(expected) + fisher)
+        with np.errstate(divide="ignore"):  # a filter claiming a correlation of exactly +-1: band [+-1, +-1]
+            z_rho = np.arctanh(np.clip(expected, -1.0, 1.0))
+        lo = np.tanh(z_rho - fisher)
+        hi = np.tanh(z_rho + fisher)
         lo[:, diag] = Pkk * stats.chi2.ppf(level / 2, N - 1) / (N - 1)
         hi[:, diag] = Pkk * stats.chi2.ppf(1 - level / 2, N - 1) / (N - 1)
         out["covariance"] = (stat, expected, lo, hi)

@@ -9,6 +9,12 @@ seeded generator, so the result does not depend on ``workers``.
 With N runs, the run-averaged NEES (dimension 6) and NIS (dimension 5) of a
 consistent filter lie in ``[chi2(alpha/2, N n)/N, chi2(1 - alpha/2, N n)/N]`` at each
 step with probability 1 - alpha (:func:`kfcal_helpers.consistency.chi2_bounds`).
+
+:meth:`MonteCarloResult.checks` turns these into verdicts, as the calibration Monte Carlo
+does: the mean error (per step and state, against ``+-t_{N-1} s/sqrt(N)``), the NEES and
+the NIS, each with its pointwise band and a simultaneous (Bonferroni) band split over
+all entries of the three checks, so that a consistent filter fails any of them with
+probability at most ``alpha``.
 """
 
 from __future__ import annotations
@@ -20,14 +26,19 @@ from multiprocessing import get_context
 
 import numpy as np
 
-from ..consistency import chi2_bounds, inside_fraction
+from scipy import stats
+
+from ..consistency import Check, chi2_bounds, inside_fraction
 from ..progress import progress
 from ..validation import require_choice, require_int
 from .filters import FILTERS, run_filter
 from .model import N_MEAS, N_STATES, CoopParams
 from .simulation import simulate_measurements, simulate_truth
 
-__all__ = ["MonteCarloResult", "truth_model_test", "default_workers"]
+__all__ = ["COOP_CHECK_NAMES", "MonteCarloResult", "truth_model_test", "default_workers"]
+
+#: the checks of :meth:`MonteCarloResult.checks`
+COOP_CHECK_NAMES = ("mean_error", "nees", "nis")
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,6 +93,36 @@ class MonteCarloResult:
     def rms_error(self) -> np.ndarray:
         """RMS error over runs and steps, per state, (6,) in m or rad."""
         return np.sqrt(np.mean(self.errors ** 2, axis=(0, 1)))
+
+    def checks(self) -> dict:
+        """The three checks at significance ``alpha``: name -> :class:`~kfcal_helpers.consistency.Check`.
+
+        * ``mean_error``: run mean of each error component (K x 6 entries, m or rad) against 0,
+          band ``+-t_{N-1}(1 - a/2) s / sqrt(N)`` with s the ensemble standard deviation;
+        * ``nees``: run-averaged NEES per step (K entries) against ``chi2_{6N}/N``;
+        * ``nis``: run-averaged NIS per step with a measurement against ``chi2_{5N}/N``.
+
+        The simultaneous band uses ``a = alpha / (all entries of the three checks)``.
+        """
+        if self.runs < 2:
+            raise ValueError("runs must be at least 2 for the checks (an ensemble standard deviation)")
+        n = self.runs
+        has = np.isfinite(self.nis).all(axis=0)
+        n_entries = self.errors[0].size + self.nees.shape[1] + int(has.sum())
+        a_sim = self.alpha / n_entries
+        mean = self.errors.mean(axis=0).ravel()
+        sem = self.errors.std(axis=0, ddof=1).ravel() / np.sqrt(n)
+        zero = np.zeros_like(mean)
+        t_pt, t_sim = stats.t.ppf(1 - self.alpha / 2, n - 1), stats.t.ppf(1 - a_sim / 2, n - 1)
+        out = {"mean_error": Check("mean_error", "run mean of the error, per step and state", mean, zero,
+                                   -t_pt * sem, t_pt * sem, -t_sim * sem, t_sim * sem)}
+        for name, dim, values in (("nees", N_STATES, self.nees_mean), ("nis", N_MEAS, self.nis_mean[has])):
+            lo, hi = chi2_bounds(dim, n, self.alpha)
+            slo, shi = chi2_bounds(dim, n, a_sim)
+            full = np.full(values.shape, 1.0)
+            out[name] = Check(name, f"run-averaged {name.upper()} per step", values, dim * full,
+                              lo * full, hi * full, slo * full, shi * full)
+        return out
 
     def summary(self) -> dict:
         """Plain-Python summary (for JSON): bounds, inside fractions, time averages."""

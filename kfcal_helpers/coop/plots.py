@@ -1,91 +1,169 @@
-"""Matplotlib figures of the cooperative-localization notebooks.
+"""Matplotlib figures of the cooperative-localization notebooks and lecture slides.
 
 Every function returns the ``Figure``; axes carry units, figures a title.
-Time axes are in seconds.
+Time axes are in seconds.  Fonts, line widths and marker sizes follow the current
+rcParams (see :mod:`kfcal_helpers.style`); ``figsize`` (inches) is the function's
+notebook default unless given.
 """
 
 from __future__ import annotations
 
+import matplotlib as mpl
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .model import MEAS_LABELS, STATE_LABELS
+from .model import MEAS_LABELS, N_MEAS, STATE_LABELS
 
-__all__ = ["plot_series", "plot_states", "plot_errors", "plot_measurements", "plot_consistency"]
+__all__ = ["plot_series", "plot_states", "plot_errors", "plot_measurements", "plot_consistency", "plot_paths",
+           "plot_nis_comparison"]
 
 
-def plot_series(t, series: dict, labels, title: str, styles: dict | None = None, ncols: int = 2):
+def _lw(scale: float = 1.0) -> float:
+    """A line width relative to rcParams['lines.linewidth']."""
+    return scale * mpl.rcParams["lines.linewidth"]
+
+
+def _two_lines(label: str) -> str:
+    """Put the unit of a y label on its own line ("range [m]" -> "range\\n[m]"), so that
+    stacked panels keep their labels apart at any font size."""
+    return label.replace(" [", "\n[", 1) if " [" in label else label
+
+
+def plot_series(t, series: dict, labels, title: str, styles: dict | None = None, ncols: int = 2, figsize=None):
     """One panel per component: ``series`` maps a legend name to an array (K, n).
 
     ``labels`` are the n y-axis labels (with units); ``styles`` maps a legend name to
-    keyword arguments of ``Axes.plot``.
+    keyword arguments of ``Axes.plot``; ``figsize`` in inches (default 11 x 2.3 per row).
     """
     n = len(labels)
     nrows = int(np.ceil(n / ncols))
-    fig, axes = plt.subplots(nrows, ncols, figsize=(11, 2.3 * nrows), sharex=True, squeeze=False)
+    fig, axes = plt.subplots(nrows, ncols, figsize=figsize or (11, 2.3 * nrows), sharex=True, squeeze=False)
     styles = styles or {}
     for i, ax in enumerate(axes.flat):
         if i >= n:
             ax.set_visible(False)
             continue
         for name, arr in series.items():
-            ax.plot(t, np.asarray(arr)[:, i], label=name, **styles.get(name, {"lw": 1}))
-        ax.set_ylabel(labels[i])
+            ax.plot(t, np.asarray(arr)[:, i], label=name, **styles.get(name, {"lw": _lw(0.7)}))
+        ax.set_ylabel(_two_lines(labels[i]))
         ax.grid(True, alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel("time $t$ [s]")
-    axes.flat[0].legend(loc="best", fontsize=8)
+    axes.flat[0].legend(loc="best")
     fig.suptitle(title)
     fig.tight_layout()
     return fig
 
 
-def plot_states(t, x, sigma2=None, truth=None, title: str = "States"):
-    """States (K, 6) with an optional +-2 sigma band (K, 6) and the truth (K, 6)."""
+def plot_states(t, x, sigma2=None, truth=None, title: str = "States", figsize=None, ncols: int = 2):
+    """States (K, 6) with an optional +-2 sigma band (K, 6) and the truth (K, 6); ``ncols`` panels per row."""
     series = {"estimate": x}
-    styles = {"estimate": {"lw": 1, "color": "C0"}, "truth": {"lw": 1, "color": "k", "ls": "--"}}
+    styles = {"estimate": {"lw": _lw(0.7), "color": "C0"}, "truth": {"lw": _lw(0.7), "color": "k", "ls": "--"}}
     if truth is not None:
         series["truth"] = truth
-    fig = plot_series(t, series, STATE_LABELS, title, styles)
+    fig = plot_series(t, series, STATE_LABELS, title, styles, ncols=ncols, figsize=figsize)
     if sigma2 is not None:
         for i, ax in enumerate(fig.axes[:6]):
             ax.fill_between(t, x[:, i] - sigma2[:, i], x[:, i] + sigma2[:, i], color="C0", alpha=0.2,
                             label=r"$\pm 2\sigma$")
-        fig.axes[0].legend(loc="best", fontsize=8)
+        fig.axes[0].legend(loc="best")
     return fig
 
 
-def plot_errors(t, errors, sigma2, title: str = r"Estimation errors with $\pm 2\sigma$ bounds"):
-    """Errors (K, 6) (headings wrapped) against +-2 sigma (K, 6)."""
-    styles = {"error": {"lw": 1, "color": "C3"}, r"$+2\sigma$": {"lw": 1, "color": "k", "ls": "--"},
-              r"$-2\sigma$": {"lw": 1, "color": "k", "ls": "--"}}
+def plot_errors(t, errors, sigma2, title: str = r"Estimation errors with $\pm 2\sigma$ bounds", figsize=None,
+                ncols: int = 2):
+    """Errors (K, 6) (headings wrapped) against +-2 sigma (K, 6); ``ncols`` panels per row."""
+    bound = {"lw": _lw(0.7), "color": "k", "ls": "--"}
+    styles = {"error": {"lw": _lw(0.7), "color": "C3"}, r"$+2\sigma$": bound, r"$-2\sigma$": bound}
     labels = [f"error {lab}" for lab in STATE_LABELS]
     return plot_series(t, {"error": errors, r"$+2\sigma$": sigma2, r"$-2\sigma$": -np.asarray(sigma2)},
-                       labels, title, styles)
+                       labels, title, styles, ncols=ncols, figsize=figsize)
 
 
-def plot_measurements(t, series: dict, title: str = "Measurements"):
-    """Measurements: ``series`` maps a legend name to an array (K, 5) (NaN rows are gaps)."""
-    styles = {name: ({"lw": 0, "marker": ".", "ms": 2} if i == 0 else {"lw": 1}) for i, name in enumerate(series)}
-    return plot_series(t, series, MEAS_LABELS, title, styles)
+def plot_measurements(t, series: dict, title: str = "Measurements", figsize=None, ncols: int = 2):
+    """Measurements: ``series`` maps a legend name to an array (K, 5) (NaN rows are gaps);
+    ``ncols`` panels per row.  The first series is drawn as dots (a wrapped bearing then jumps
+    without a vertical line)."""
+    ms = 0.35 * mpl.rcParams["lines.markersize"]
+    styles = {name: ({"lw": 0, "marker": ".", "ms": ms} if i == 0 else {"lw": _lw(0.7)})
+              for i, name in enumerate(series)}
+    return plot_series(t, series, MEAS_LABELS, title, styles, ncols=ncols, figsize=figsize)
 
 
-def plot_consistency(mc, title: str | None = None):
+def plot_consistency(mc, title: str | None = None, figsize=None):
     """Run-averaged NEES and NIS of a :class:`~kfcal_helpers.coop.montecarlo.MonteCarloResult`
-    against their chi-square bounds."""
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.2))
+    against their chi-square bounds (default 11 x 3.2 in)."""
+    fig, axes = plt.subplots(1, 2, figsize=figsize or (11, 3.2))
     for ax, mean, bounds, name in ((axes[0], mc.nees_mean, mc.nees_bounds, "NEES"),
                                    (axes[1], mc.nis_mean, mc.nis_bounds, "NIS")):
         ok = np.isfinite(mean)
-        ax.plot(mc.t[ok], mean[ok], ".", ms=2, label=f"{name}, mean of {mc.runs} runs")
-        for b in bounds:
-            ax.axhline(b, color="k", ls="--", lw=1)
+        ax.plot(mc.t[ok], mean[ok], ".", ms=0.35 * mpl.rcParams["lines.markersize"],
+                label=f"{name}, mean of {mc.runs} runs")
+        for b, lab in zip(bounds, (f"χ² bounds, α = {mc.alpha:g}", None)):
+            ax.axhline(b, color="k", ls="--", lw=_lw(0.7), label=lab)
         ax.set_xlabel("time $t$ [s]")
         ax.set_ylabel(f"mean {name} [-]")
         frac = mc.nees_inside_fraction if name == "NEES" else mc.nis_inside_fraction
-        ax.set_title(f"{name}: {100 * frac:.1f}% of steps inside [{bounds[0]:.2f}, {bounds[1]:.2f}]", fontsize=10)
+        ax.set_title(f"{name}: {100 * frac:.1f}% inside [{bounds[0]:.2f}, {bounds[1]:.2f}]")
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize=8)
+        ax.legend(loc="upper right")
     fig.suptitle(title or f"{mc.filter.upper()} truth-model test, alpha = {mc.alpha:g}")
+    fig.tight_layout()
+    return fig
+
+
+def plot_paths(paths: dict, title: str = "Paths of the two vehicles", figsize=None):
+    """Paths in the east-north plane: ``paths`` maps a legend name to states (K, 6).  The UGV is
+    drawn in C0, the UAV in C1, one line style per entry, starts as dots; equal axis scales, and an
+    inset zoomed on the UGV (its circle is small next to the UAV's); default 7 x 6 in."""
+    styles = ("-", "--", ":", "-.")
+    fig, ax = plt.subplots(figsize=figsize or (7, 6))
+    zoom = ax.inset_axes([0.36, 0.3, 0.3, 0.4])
+    for i, (name, x) in enumerate(paths.items()):
+        x = np.asarray(x)
+        ls = styles[i % len(styles)]
+        for target in (ax, zoom):
+            _ = target.plot(x[:, 0], x[:, 1], ls, color="C0", label=f"UGV, {name}")
+            _ = target.plot(x[0, 0], x[0, 1], "o", color="C0")
+        _ = ax.plot(x[:, 3], x[:, 4], ls, color="C1", label=f"UAV, {name}")
+        _ = ax.plot(x[0, 3], x[0, 4], "o", color="C1")
+    ax.set_xlabel(r"east $\xi$ [m]")
+    ax.set_ylabel(r"north $\eta$ [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    zoom.set_aspect("equal", adjustable="datalim")
+    zoom.set_title("UGV, zoomed [m]", fontsize="medium")
+    zoom.tick_params(labelsize="small")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    ax.set_title(title)
+    fig.tight_layout()
+    return fig
+
+
+def plot_nis_comparison(averages: dict, bounds, title: str = "Time-averaged NIS on the log",
+                        expected: float = N_MEAS, figsize=None):
+    """Time-averaged NIS per filter (``averages`` maps a name to a float) against the chi-square
+    ``bounds`` (lower, upper) of a consistent filter and the ``expected`` value (the measurement
+    dimension); a marker per filter, green inside the bounds, red outside; log scale
+    (default 7 x 4.5 in)."""
+    names = list(averages)
+    values = np.array([averages[n] for n in names], float)
+    lo, hi = bounds
+    fig, ax = plt.subplots(figsize=figsize or (7, 4.5))
+    ax.axhspan(lo, hi, color="C2", alpha=0.25, label=f"χ² bounds [{lo:.2f}, {hi:.2f}]")
+    _ = ax.axhline(expected, color="k", ls="--", lw=_lw(0.7), label=f"expected value {expected:g}")
+    x = np.arange(len(names))
+    for xi, v in zip(x, values):
+        inside = lo <= v <= hi
+        _ = ax.plot(xi, v, "o", ms=2 * mpl.rcParams["lines.markersize"], color="C2" if inside else "C3")
+        ax.annotate(f"{v:.2f} ({'inside' if inside else 'outside'})", (xi, v), xytext=(0, 12),
+                    textcoords="offset points", ha="center")
+    ax.set_xticks(x, names)
+    ax.set_xlim(-0.5, len(names) - 0.5)
+    ax.set_yscale("log")
+    ax.set_ylim(min(values.min(), lo) / 1.5, max(values.max(), hi) * 3)
+    ax.set_ylabel("time-averaged NIS [-]")
+    ax.set_title(title)
+    ax.legend(loc="upper right")
+    ax.grid(False, axis="x")
     fig.tight_layout()
     return fig
