@@ -15,6 +15,11 @@ Every filter starts at (x0, P0) at t_0 and, for k = 1..K-1, predicts to t_k and 
 with ``y_k`` unless that row is NaN (predict only).  A finite ``y_0`` is used at t_0.
 All return a :class:`FilterResult`.  Process noise is discrete, per step (``P- = F P F^T + Q``),
 as in the truth model.
+
+Every filter accepts ``measurements=`` (indices of the rows of ``y`` it uses, e.g. ``(0, 1, 2)``
+for the two bearings and the range without the UAV's GPS): the update then uses only those
+components of ``y``, the matching rows of ``h`` and of its Jacobian and the block of ``R``, and the
+NIS has that many degrees of freedom.  The default (all five) is the full filter, unchanged.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from ..consistency import nees as _nees
 from ..consistency import nis as _nis
 from ..validation import require_choice, require_covariance, require_positive, require_shape
 from .model import (
+    MEAS_ANGLES,
     N_MEAS,
     N_STATES,
     CoopParams,
@@ -42,6 +48,7 @@ from .model import (
     state_add,
     state_mean,
     state_residual,
+    wrap_angle,
     wrap_state,
 )
 
@@ -61,6 +68,7 @@ __all__ = [
     "run_ukf",
     "run_filter",
     "tune_q_scale",
+    "measurement_subset",
 ]
 
 FILTERS = ("lkf", "ekf", "ukf")
@@ -94,6 +102,9 @@ class FilterResult:
     S : (K, 5, 5) innovation covariances; NaN without a measurement
     nis : (K,) normalized innovation squared; NaN without a measurement
     nees : (K,) normalized estimation error squared (headings wrapped), or None without truth
+    measurements : tuple of the rows of y the filter used (default all five); with fewer,
+        ``z_pred``, ``innovations`` and ``S`` are NaN in the unused components and ``nis``
+        has ``len(measurements)`` degrees of freedom
     """
 
     name: str
@@ -105,6 +116,7 @@ class FilterResult:
     S: np.ndarray
     nis: np.ndarray
     nees: np.ndarray | None = None
+    measurements: tuple = tuple(range(N_MEAS))
 
     @property
     def sigma2(self) -> np.ndarray:
@@ -147,16 +159,80 @@ class FilterSetup:
         return cls(p, y, np.array(Q), np.array(R), wrap_state(x0), np.array(P0))
 
 
-def _finish(name, setup, x, P, zp, nu, S, truth) -> FilterResult:
+def measurement_subset(measurements) -> tuple[int, ...] | None:
+    """Validate ``measurements=``: None (all five rows of y) or a non-empty sequence of
+    distinct integers in 0..4 (0 bearing UGV->UAV, 1 range, 2 bearing UAV->UGV, 3 UAV GPS east,
+    4 UAV GPS north).  Returns None for all five, else the sorted tuple; ValueError otherwise."""
+    if measurements is None:
+        return None
+    allowed = ("measurements must be a non-empty sequence of distinct integers in 0..4 (rows of y: "
+               "0 bearing UGV->UAV, 1 range, 2 bearing UAV->UGV, 3 UAV GPS east, 4 UAV GPS north)")
+    if isinstance(measurements, (str, bytes)):
+        raise ValueError(f"{allowed}, got {measurements!r}")
+    try:
+        items = list(measurements)
+    except TypeError:
+        raise ValueError(f"{allowed}, got {measurements!r}") from None
+    ok = all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < N_MEAS for i in items)
+    if not items or not ok or len({int(i) for i in items}) != len(items):
+        raise ValueError(f"{allowed}, got {measurements!r}")
+    idx = tuple(sorted(int(i) for i in items))
+    return None if idx == tuple(range(N_MEAS)) else idx
+
+
+class _Subset:
+    """The measurement functions restricted to the rows ``idx`` of y (bearings still wrapped)."""
+
+    def __init__(self, idx, R):
+        self.idx = list(idx)
+        self.m = len(self.idx)
+        self.angles = [j for j, i in enumerate(self.idx) if i in MEAS_ANGLES]
+        self.R = R[np.ix_(self.idx, self.idx)]
+
+    def residual(self, a, b):
+        d = np.subtract(a, b, dtype=float)
+        if self.angles:
+            d[..., self.angles] = wrap_angle(d[..., self.angles])
+        return d
+
+    def mean(self, sigmas, weights):  # the UKF's z_mean_fn: circular mean of the bearings
+        sigmas = np.asarray(sigmas, dtype=float)
+        w = np.asarray(weights, dtype=float)
+        mean = np.matmul(w, sigmas)
+        if self.angles:
+            a = sigmas[..., self.angles]
+            mean[..., self.angles] = np.arctan2(np.matmul(w, np.sin(a)), np.matmul(w, np.cos(a)))
+        return mean
+
+    def h(self, x):
+        return measure(x)[..., self.idx]
+
+    def h_column(self, x):
+        return measure(x[:, 0])[self.idx].reshape(self.m, 1)
+
+    def C_column(self, x):
+        return jacobian_C(x[:, 0])[self.idx]
+
+    def residual_column(self, a, b):
+        return self.residual(a[:, 0], b[:, 0]).reshape(self.m, 1)
+
+
+def _finish(name, setup, x, P, zp, nu, S, truth, measurements=None) -> FilterResult:
     K = setup.y.shape[0]
     nis = np.full(K, np.nan)
-    has = np.isfinite(nu).all(axis=1)
-    nis[has] = _nis(nu[has], S[has])
+    if measurements is None:
+        idx = list(range(N_MEAS))
+        has = np.isfinite(nu).all(axis=1)
+        nis[has] = _nis(nu[has], S[has])
+    else:  # the NIS of the rows used: len(measurements) degrees of freedom
+        idx = list(measurements)
+        has = np.isfinite(nu[:, idx]).all(axis=1)
+        nis[has] = _nis(nu[has][:, idx], S[has][:, idx][:, :, idx])
     nees = None
     if truth is not None:
         truth = require_shape("truth", truth, (K, N_STATES))
         nees = _nees(state_residual(truth, x), P)
-    return FilterResult(name, setup.params.dT * np.arange(K), x, P, zp, nu, S, nis, nees)
+    return FilterResult(name, setup.params.dT * np.arange(K), x, P, zp, nu, S, nis, nees, tuple(idx))
 
 
 def _storage(K):
@@ -166,38 +242,58 @@ def _storage(K):
 
 # ---------------------------------------------------------------------------
 # LKF
-def make_lkf(setup: FilterSetup) -> KalmanFilter:
-    """filterpy KalmanFilter on dx = x - x_nom, initialised at dx0 = x0 - x_nom_0."""
-    kf = KalmanFilter(dim_x=N_STATES, dim_z=N_MEAS)
+def make_lkf(setup: FilterSetup, measurements=None) -> KalmanFilter:
+    """filterpy KalmanFilter on dx = x - x_nom, initialised at dx0 = x0 - x_nom_0.
+
+    ``measurements`` (optional, see :func:`measurement_subset`): a filter for that subset
+    of the rows of y (``dim_z = len(measurements)``, R the matching block).
+    """
+    idx = measurement_subset(measurements)
+    kf = KalmanFilter(dim_x=N_STATES, dim_z=N_MEAS if idx is None else len(idx))
     kf.x = state_residual(setup.x0, setup.params.x0).reshape(N_STATES, 1)
     kf.P = setup.P0.copy()
     kf.Q = setup.Q.copy()
-    kf.R = setup.R.copy()
+    kf.R = setup.R.copy() if idx is None else setup.R[np.ix_(idx, idx)].copy()
     return kf
 
 
-def run_lkf(y, params=None, Q=None, R=None, x0=None, P0=None, truth=None) -> FilterResult:
-    """Linearized KF about the nominal trajectory; arguments as in :func:`run_filter`."""
+def run_lkf(y, params=None, Q=None, R=None, x0=None, P0=None, truth=None,
+            subtract_nominal: bool = True, measurements=None) -> FilterResult:
+    """Linearized KF about the nominal trajectory; arguments as in :func:`run_filter`.
+
+    ``subtract_nominal=False`` builds a known mistake (notebook 14): the innovation
+    ``y - H dx-`` without the nominal measurement ``y*`` subtracted.
+    """
     s = FilterSetup.build("lkf", y, params, Q, R, x0, P0)
+    idx = measurement_subset(measurements)
     p, K = s.params, s.y.shape[0]
     xnom = nominal_trajectory(p, K)
     ynom = measure(xnom)
     F = np.eye(N_STATES) + p.dT * jacobian_A(xnom, p.u0, p.L)  # (K, 6, 6), F[k] maps k -> k+1
     H = jacobian_C(xnom)  # (K, 5, 6)
-    kf = make_lkf(s)
+    kf = make_lkf(s, idx)
     x, P, zp, nu, S = _storage(K)
     for k in range(K):
         if k > 0:
             kf.predict(F=F[k - 1])
         if not np.isnan(s.y[k, 0]):
             zk = ynom[k] + H[k] @ kf.x[:, 0]  # predicted measurement
+            if not subtract_nominal:
+                zk = H[k] @ kf.x[:, 0]  # the mistake: the perturbation model compared with the total y
             innov = measurement_residual(s.y[k], zk)
-            kf.update((H[k] @ kf.x[:, 0] + innov).reshape(N_MEAS, 1), H=H[k])
-            assert kf.x.shape == (N_STATES, 1) and kf.y.shape == (N_MEAS, 1)
-            zp[k], nu[k], S[k] = zk, kf.y[:, 0], kf.S
+            if idx is None:
+                kf.update((H[k] @ kf.x[:, 0] + innov).reshape(N_MEAS, 1), H=H[k])
+                assert kf.x.shape == (N_STATES, 1) and kf.y.shape == (N_MEAS, 1)
+                zp[k], nu[k], S[k] = zk, kf.y[:, 0], kf.S
+            else:  # only the rows idx of y, H and R
+                rows = list(idx)
+                kf.update((H[k][rows] @ kf.x[:, 0] + innov[rows]).reshape(len(rows), 1), H=H[k][rows])
+                assert kf.x.shape == (N_STATES, 1) and kf.y.shape == (len(rows), 1)
+                zp[k, rows], nu[k, rows] = zk[rows], kf.y[:, 0]
+                S[k][np.ix_(rows, rows)] = kf.S
         x[k], P[k] = kf.x[:, 0], kf.P
     x = wrap_state(xnom + x)
-    return _finish("lkf", s, x, P, zp, nu, S, truth)
+    return _finish("lkf", s, x, P, zp, nu, S, truth, idx)
 
 
 # ---------------------------------------------------------------------------
@@ -244,28 +340,39 @@ def make_ekf(setup: FilterSetup) -> CoopEKF:
 
 
 def run_ekf(y, params=None, Q=None, R=None, x0=None, P0=None, truth=None,
-            wrap_innovations: bool = True) -> FilterResult:
+            wrap_innovations: bool = True, measurements=None) -> FilterResult:
     """Extended KF; arguments as in :func:`run_filter`.
 
     ``wrap_innovations=False`` passes filterpy's default ``residual=np.subtract``: only
     to demonstrate the pitfall (bearing innovations jump by 2 pi across +-pi).
     """
     s = FilterSetup.build("ekf", y, params, Q, R, x0, P0)
+    idx = measurement_subset(measurements)
     K = s.y.shape[0]
     ekf = make_ekf(s)
     x, P, zp, nu, S = _storage(K)
+    if idx is None:
+        rows, m, Hj, hx, res, R_used = slice(None), N_MEAS, _C_column, _h_column, _residual_column, None
+    else:  # only the rows idx of y, h, its Jacobian and R
+        sub = _Subset(idx, s.R)
+        rows, m, Hj, hx, res, R_used = list(idx), len(idx), sub.C_column, sub.h_column, sub.residual_column, sub.R
     for k in range(K):
         if k > 0:
             ekf.predict()
         if not np.isnan(s.y[k, 0]):
-            ekf.update(s.y[k].reshape(N_MEAS, 1), HJacobian=_C_column, Hx=_h_column,
-                       residual=_residual_column if wrap_innovations else np.subtract)
-            assert ekf.x.shape == (N_STATES, 1) and ekf.y.shape == (N_MEAS, 1)
+            yk = s.y[k, rows]
+            ekf.update(yk.reshape(m, 1), HJacobian=Hj, Hx=hx, R=R_used,
+                       residual=res if wrap_innovations else np.subtract)
+            assert ekf.x.shape == (N_STATES, 1) and ekf.y.shape == (m, 1)
             ekf.x = wrap_state(ekf.x[:, 0]).reshape(N_STATES, 1)
-            nu[k], S[k] = ekf.y[:, 0], ekf.S
-            zp[k] = measurement_residual(s.y[k], nu[k])  # h(x-), from y - nu
+            if idx is None:
+                nu[k], S[k] = ekf.y[:, 0], ekf.S
+                zp[k] = measurement_residual(s.y[k], nu[k])  # h(x-), from y - nu
+            else:
+                nu[k, rows], S[k][np.ix_(rows, rows)] = ekf.y[:, 0], ekf.S
+                zp[k, rows] = sub.residual(yk, ekf.y[:, 0])  # h(x-) on the rows used
         x[k], P[k] = ekf.x[:, 0], ekf.P
-    return _finish("ekf", s, x, P, zp, nu, S, truth)
+    return _finish("ekf", s, x, P, zp, nu, S, truth, idx)
 
 
 # ---------------------------------------------------------------------------
@@ -311,11 +418,17 @@ def make_ukf(setup: FilterSetup, alpha=None, beta=None, kappa=None) -> Unscented
 
 
 def run_ukf(y, params=None, Q=None, R=None, x0=None, P0=None, truth=None,
-            alpha=None, beta=None, kappa=None) -> FilterResult:
+            alpha=None, beta=None, kappa=None, measurements=None) -> FilterResult:
     """Unscented KF; arguments as in :func:`run_filter`, plus the sigma-point parameters."""
     s = FilterSetup.build("ukf", y, params, Q, R, x0, P0)
+    idx = measurement_subset(measurements)
     K = s.y.shape[0]
     ukf = make_ukf(s, alpha, beta, kappa)
+    rows, m = slice(None), N_MEAS
+    if idx is not None:  # h, the z mean and residual (bearings still circular) and R on the rows idx
+        sub = _Subset(idx, s.R)
+        rows, m = list(idx), len(idx)
+        ukf.hx, ukf.z_mean, ukf.residual_z, ukf.R = sub.h, sub.mean, sub.residual, sub.R
     x, P, zp, nu, S = _storage(K)
     for k in range(K):
         if k > 0:
@@ -323,20 +436,25 @@ def run_ukf(y, params=None, Q=None, R=None, x0=None, P0=None, truth=None,
         elif not np.isnan(s.y[0, 0]):  # update at t_0: sigma points of the initial (x0, P0)
             ukf.sigmas_f = ukf.points_fn.sigma_points(ukf.x, ukf.P)
         if not np.isnan(s.y[k, 0]):
-            ukf.update(s.y[k])
-            assert ukf.x.shape == (N_STATES,) and ukf.y.shape == (N_MEAS,)
+            yk = s.y[k, rows]
+            ukf.update(yk)
+            assert ukf.x.shape == (N_STATES,) and ukf.y.shape == (m,)
             ukf.P = 0.5 * (ukf.P + ukf.P.T)
-            nu[k], S[k] = ukf.y, ukf.S
-            zp[k] = measurement_residual(s.y[k], ukf.y)  # the sigma-point mean z-
+            if idx is None:
+                nu[k], S[k] = ukf.y, ukf.S
+                zp[k] = measurement_residual(s.y[k], ukf.y)  # the sigma-point mean z-
+            else:
+                nu[k, rows], S[k][np.ix_(rows, rows)] = ukf.y, ukf.S
+                zp[k, rows] = sub.residual(yk, ukf.y)  # the sigma-point mean z- on the rows used
         x[k], P[k] = ukf.x, ukf.P
-    return _finish("ukf", s, x, P, zp, nu, S, truth)
+    return _finish("ukf", s, x, P, zp, nu, S, truth, idx)
 
 
 _RUNNERS = {"lkf": run_lkf, "ekf": run_ekf, "ukf": run_ukf}
 
 
 def run_filter(name: str, y, params: CoopParams | None = None, Q=None, R=None, x0=None, P0=None,
-               truth=None, **kwargs) -> FilterResult:
+               truth=None, measurements=None, **kwargs) -> FilterResult:
     """Run filter ``name`` ("lkf", "ekf", "ukf") on measurements ``y``.
 
     Parameters
@@ -347,14 +465,18 @@ def run_filter(name: str, y, params: CoopParams | None = None, Q=None, R=None, x
     R : (5, 5) measurement noise (default ``params.Rtrue``)
     x0, P0 : initial estimate (6,) and covariance (6, 6) (default ``params.x0``, ``params.P0``)
     truth : (K, 6), optional -- true states, for the NEES
-    kwargs : UKF only: alpha, beta, kappa; EKF only: wrap_innovations
+    measurements : optional sequence of the rows of y to use (distinct integers in 0..4: 0 bearing
+        UGV->UAV, 1 range, 2 bearing UAV->UGV, 3 UAV GPS east, 4 UAV GPS north); default all five.
+        The update uses only those components (rows of h and its Jacobian, block of R) and the
+        NIS has ``len(measurements)`` degrees of freedom.  ValueError if malformed.
+    kwargs : UKF only: alpha, beta, kappa; EKF only: wrap_innovations; LKF only: subtract_nominal
 
     Returns
     -------
     FilterResult
     """
     name = require_choice("filter", name, FILTERS)
-    return _RUNNERS[name](y, params, Q, R, x0, P0, truth, **kwargs)
+    return _RUNNERS[name](y, params, Q, R, x0, P0, truth, measurements=measurements, **kwargs)
 
 
 def tune_q_scale(name: str, y, scales, params: CoopParams | None = None, **kwargs):

@@ -1,0 +1,495 @@
+"""Exercise checks of notebooks 01-07, 15, 16: every check accepts the right answer (computed
+here by another route), rejects each listed wrong answer with its hint, reports a placeholder
+as "not answered yet", and turns a malformed answer into a hint instead of an exception."""
+
+import re
+
+import numpy as np
+import pytest
+from filterpy.kalman import KalmanFilter
+from scipy import stats
+
+import kfcal_helpers.exercises as exercises
+from kfcal_helpers.calibration import (CalibrationParams, covariance_sequence, error_state_model,
+                                       rts_smooth_fixes, run_monte_carlo)
+from kfcal_helpers.exercises import Feedback, calibration as ex
+from kfcal_helpers.exercises.calibration import GENERIC, HINTS
+
+DT = 0.005  # s, the default IMU period
+A = 10.0  # m/s^2
+
+
+# --------------------------------------------------------------------------------------------
+# independent reference computations (plain loops and formulas, not the package's helpers)
+# --------------------------------------------------------------------------------------------
+def euler_loop(a, p0, v0, dt, kind="ok"):
+    p, v = [p0], [v0]
+    for j in range(len(a) - 1):
+        aj = a[j + 1] if kind == "right" else a[j]
+        v_new = v[-1] + aj * dt
+        vel = v_new if kind == "new_v" else v[-1]
+        acc = {"no_acc": 0.0, "dt2": aj * dt**2}.get(kind, aj * dt**2 / 2)
+        p.append(p[-1] + vel * dt + acc)
+        v.append(v_new)
+    return np.array(p), np.array(v)
+
+
+def truths(omega, t_end):
+    """Analytic and Euler (p, v) on the 200 Hz grid up to t_end, p0 = v0 = 0."""
+    n = int(round(t_end / DT)) + 1
+    t = np.arange(n) * DT
+    a = A * np.sin(omega * t)
+    v_an = A / omega * (1 - np.cos(omega * t))
+    p_an = A / omega * t - A / omega**2 * np.sin(omega * t)
+    p_e, v_e = euler_loop(a, 0.0, 0.0, DT)
+    return p_an, v_an, p_e, v_e
+
+
+def phi(dt, k=1):
+    s = k * dt
+    return np.array([[1, s, -s**2 / 2], [0, 1, -s], [0, 0, 1]])
+
+
+def two_sided(dof, divide, alpha=0.05):
+    return np.array(stats.chi2.interval(1 - alpha, dof)) / divide
+
+
+def filterpy_gain_at_second_fix():
+    m = error_state_model(CalibrationParams())
+    kf = KalmanFilter(dim_x=3, dim_z=2)
+    kf.F, kf.Q, kf.H, kf.R = m.Phi, m.Q, m.H, m.V
+    kf.x, kf.P = np.zeros((3, 1)), m.M0.copy()
+    kf.update(np.zeros((2, 1)))
+    for _ in range(40):
+        kf.predict()
+    kf.update(np.zeros((2, 1)))
+    return kf.K.copy(), kf
+
+
+def predict_loop(x, P, Phi, Q, n, q=True, transposed=False):
+    for _ in range(n):
+        x = Phi @ x
+        P = (Phi.T @ P @ Phi if transposed else Phi @ P @ Phi.T) + (Q if q else 0)
+    return x, P
+
+
+def noise_sum_closed_form(n, dt=DT, W=4e-4):
+    """sum_{j<n} Phi^j Q Phi^jT with Phi^j Gamma = [-dt^2/2 - j dt^2, -dt, 0] (closed form)."""
+    j = np.arange(n)
+    g = np.stack([-dt**2 / 2 - j * dt**2, -dt * np.ones(n), np.zeros(n)], axis=1)
+    return W * g.T @ g
+
+
+def coast(P0, n, q=True):
+    F = phi(DT, n)
+    return F @ P0 @ F.T + (noise_sum_closed_form(n) if q else 0)
+
+
+# --------------------------------------------------------------------------------------------
+# the table: check, right answer, [(hint key, wrong answer)], extra accepted answers
+# --------------------------------------------------------------------------------------------
+def cases():
+    out = {}
+    # 01.1 --------------------------------------------------------------------------------
+    p_an, v_an, p_e, v_e = truths(0.8, 10.0)
+    approx = DT / 2 * A * np.sin(8.0)
+    out["01.1"] = (ex.check_euler_velocity_gap, v_an[-1] - v_e[-1],
+                   [("sign", v_e[-1] - v_an[-1]), ("no_half", DT * A * np.sin(8.0)),
+                    ("omega", DT / 2 * A * np.sin(2.0)), ("hertz", DT / 2 * A * np.sin(2 * np.pi * 8.0)),
+                    ("position", DT / 2 * A / 0.8 * (1 - np.cos(8.0)))], [approx])
+    # 01.2 --------------------------------------------------------------------------------
+    p_an, v_an, p_e, v_e = truths(0.8, 30.0)
+    out["01.2"] = (ex.check_euler_position_gap_max, np.max(np.abs(p_an - p_e)),
+                   [("no_two", 0.03125), ("velocity", 0.025), ("units", DT * A / 0.64), ("omega", 0.25),
+                    ("full_dt", 0.125)], [DT * A / 0.8])
+    # 02.1 --------------------------------------------------------------------------------
+    out["02.1"] = (ex.check_imu_drift, [2 - 6 - 10, -0.3 - 1.0],
+                   [("sign", [2 - 6 + 10, -0.3 + 1]), ("no_half", [2 - 6 - 20, -1.3]), ("no_dv0_t", [2 - 10, -1.3]),
+                    ("swapped", [-1.3, -14]), ("no_initial", [-10, -1])], [np.array([[-14.0], [-1.3]])])
+    # 02.2 --------------------------------------------------------------------------------
+    dt, W, n = 0.01, 4e-4, 2000
+    sig_v = np.sqrt(W) * dt * np.sqrt(n)
+    sig_p = np.sqrt(W * dt**4 * np.sum((np.arange(n) + 0.5) ** 2))
+    sig_p200 = np.sqrt(W * DT**4 * np.sum((np.arange(4000) + 0.5) ** 2))
+    out["02.2"] = (ex.check_imu_random_walk, [sig_p, sig_v],
+                   [("variance", [sig_p**2, sig_v**2]), ("rate", [sig_p200, np.sqrt(W * DT * 20)]),
+                    ("no_dt", [np.sqrt(W * 8000 / 3), np.sqrt(W * 20)]), ("linear", [0.02 * 200, 0.02 * 20]),
+                    ("swapped", [sig_v, sig_p]), ("no_third", [np.sqrt(W * dt * 8000), sig_v])],
+                   [[np.sqrt(W * dt * 8000 / 3), sig_v]])
+    # 02.3 --------------------------------------------------------------------------------
+    out["02.3"] = (ex.check_imu_std_band, 0.02 * np.sqrt(two_sided(49, 49)),
+                   [("n_dof", 0.02 * np.sqrt(two_sided(50, 50))), ("variance", 4e-4 * two_sided(49, 49)),
+                    ("one_sided", 0.02 * np.sqrt(two_sided(49, 49, alpha=0.1))),
+                    ("no_divide", 0.02 * np.sqrt(two_sided(49, 1)))], [])
+    # 03.1 --------------------------------------------------------------------------------
+    idx = [50 * i for i in range(121)]
+    out["03.1"] = (ex.check_gps_fix_indices, idx,
+                   [("no_last", idx[:-1]), ("no_first", idx[1:]), ("times", [0.25 * i for i in range(121)]),
+                    ("rate", list(range(0, 6001, 40))), ("one_based", [i + 1 for i in idx])],
+                   [np.array(idx, dtype=np.int64)])
+    # 03.2 --------------------------------------------------------------------------------
+    out["03.2"] = (ex.check_gps_dz, [2.47, -0.058],
+                   [("sign", [-2.47, 0.058]), ("swapped", [-0.058, 2.47]), ("noise", [0.56, -0.038]),
+                    ("truth", [1.91, -0.02])], [])
+    # 03.3 --------------------------------------------------------------------------------
+    out["03.3"] = (ex.check_gps_rms_band, 0.04 * np.sqrt(two_sided(100, 100)),
+                   [("n_minus_1", 0.04 * np.sqrt(two_sided(99, 99))), ("variance", 0.0016 * two_sided(100, 100)),
+                    ("one_sided", 0.04 * np.sqrt(two_sided(100, 100, alpha=0.1))),
+                    ("normal", 0.04 * (1 + np.array([-1.959963984540054, 1.959963984540054]) / np.sqrt(200)))], [])
+    # 04.1 --------------------------------------------------------------------------------
+    d = 0.01
+    right = phi(d)
+    out["04.1"] = (ex.check_phi_100hz, right,
+                   [("sign_corner", right + [[0, 0, d**2], [0, 0, 0], [0, 0, 0]]),
+                    ("dt_corner", right + [[0, 0, d**2 / 2 - d], [0, 0, 0], [0, 0, 0]]),
+                    ("signs_bias", np.abs(right)), ("rate", phi(DT)), ("transposed", right.T),
+                    ("no_half", right - [[0, 0, d**2 / 2], [0, 0, 0], [0, 0, 0]])], [right.tolist()])
+    # 04.2 --------------------------------------------------------------------------------
+    out["04.2"] = (ex.check_gamma_100hz, [-5e-5, -0.01, 0.0],
+                   [("signs", [5e-5, 0.01, 0.0]), ("dt_first", [-0.01, -0.01, 0.0]), ("no_half", [-1e-4, -0.01, 0.0]),
+                    ("rate", [-1.25e-5, -0.005, 0.0]), ("bias_noise", [-5e-5, -0.01, 1.0])],
+                   [np.array([[-5e-5], [-0.01], [0.0]])])
+    # 04.3 --------------------------------------------------------------------------------
+    right = np.linalg.matrix_power(phi(d), 25)
+    out["04.3"] = (ex.check_phi_fix_to_fix, right,
+                   [("linear", np.eye(3) + 25 * (phi(d) - np.eye(3))), ("steps", np.linalg.matrix_power(phi(d), 40)),
+                    ("rate", np.linalg.matrix_power(phi(DT), 25)), ("signs", np.abs(right)),
+                    ("one_short", np.linalg.matrix_power(phi(d), 24))], [phi(0.25)])
+    # 04.4 --------------------------------------------------------------------------------
+    out["04.4"] = (ex.check_m0, np.diag([25.0, 0.25, 0.0025]),
+                   [("sigmas", np.diag([5.0, 0.5, 0.05])), ("swapped", np.diag([0.25, 25.0, 0.0025])),
+                    ("default", np.diag([100.0, 1.0, 0.01]))], [])
+    # 05.2 --------------------------------------------------------------------------------
+    right = np.array([[100 / 104, 0], [0, 1 / 1.01], [0, 0]])
+    out["05.2"] = (ex.check_first_gain, right,
+                   [("default_v", [[100 / 101, 0], [0, 1 / 1.0016], [0, 0]]),
+                    ("swapped", [[100 / 100.01, 0], [0, 1 / 5], [0, 0]]), ("no_p_in_s", [[25, 0], [0, 100], [0, 0]]),
+                    ("no_p", [[1 / 104, 0], [0, 1 / 1.01], [0, 0]])], [])
+    # 05.3 --------------------------------------------------------------------------------
+    K, _ = filterpy_gain_at_second_fix()
+    m = error_state_model(CalibrationParams())
+    S0 = m.M0[:2, :2] + m.V
+    K0 = m.M0[:, :2] @ np.linalg.inv(S0)
+    P_first = (np.eye(3) - K0 @ m.H) @ m.M0  # a posteriori at t = 0
+
+    def gain(P):
+        return P[:, :2] @ np.linalg.inv(P[:2, :2] + m.V)
+
+    out["05.3"] = (ex.check_second_gain, K,
+                   [("one_short", gain(coast(P_first, 39))), ("one_long", gain(coast(P_first, 41))),
+                    ("no_q", gain(coast(P_first, 40, q=False))), ("no_first_update", gain(coast(m.M0, 40)))], [])
+    # 06.1 --------------------------------------------------------------------------------
+    out["06.1"] = (ex.check_mc_nis_bounds, two_sided(100, 50),
+                   [("dim3", two_sided(150, 50)), ("dim1", two_sided(50, 50)), ("one_sided", two_sided(100, 50, 0.1)),
+                    ("sum", two_sided(100, 1)), ("n_minus_1", two_sided(98, 49))], [])
+    # 06.2 --------------------------------------------------------------------------------
+    z = 1.959963984540054
+    out["06.2"] = (ex.check_fisher_band, np.tanh(np.arctanh(0.8) + np.array([-z, z]) / np.sqrt(297)),
+                   [("sqrt_n", np.tanh(np.arctanh(0.8) + np.array([-z, z]) / np.sqrt(300))),
+                    ("linear", 0.8 + np.array([-z, z]) / np.sqrt(297)),
+                    ("z_space", np.arctanh(0.8) + np.array([-z, z]) / np.sqrt(297)),
+                    ("one_sided", np.tanh(np.arctanh(0.8) + np.array([-1.6448536269514722, 1.6448536269514722])
+                                          / np.sqrt(297)))], [])
+    # 06.3 --------------------------------------------------------------------------------
+    lvl = 0.05 / 1057
+    out["06.3"] = (ex.check_simultaneous_nees_band, two_sided(3000, 1000, lvl),
+                   [("pointwise", two_sided(3000, 1000)), ("fixes_only", two_sided(3000, 1000, 0.05 / 151)),
+                    ("checks_only", two_sided(3000, 1000, 0.05 / 7)), ("one_sided", two_sided(3000, 1000, 2 * lvl)),
+                    ("dim2", two_sided(2000, 1000, lvl))], [])
+    # 07.1 --------------------------------------------------------------------------------
+    w = 2 * np.pi * 0.1
+    t = np.linspace(0, 30, 300001)
+    jerk = np.gradient(DT / 2 * A * np.sin(w * t), t)  # d/dt of the velocity mismatch
+    out["07.1"] = (ex.check_apparent_bias, np.max(np.abs(jerk)),
+                   [("velocity", 0.025), ("hertz", DT / 2 * A * 0.1), ("no_half", DT * A * w),
+                    ("second_derivative", DT / 2 * A * w**2), ("omega", DT / 2 * A * 0.2)], [])
+    # 15.1 --------------------------------------------------------------------------------
+    tg = np.arange(151) / 5
+    eps = 1e-6
+    right = ((tg > 5 - eps) & (tg < 7 - eps)) | ((tg > 20 - eps) & (tg < 21.5 - eps))
+    closed = ((tg > 5 - eps) & (tg < 7 + eps)) | ((tg > 20 - eps) & (tg < 21.5 + eps))
+    open_start = ((tg > 5 + eps) & (tg < 7 - eps)) | ((tg > 20 + eps) & (tg < 21.5 - eps))
+    out["15.1"] = (ex.check_outage_mask, right,
+                   [("closed", closed), ("open_start", open_start), ("inverted", ~right),
+                    ("imu_rate", np.zeros(6001, bool))], [right.astype(int).tolist()])
+    # 15.2 --------------------------------------------------------------------------------
+    P0 = np.diag([0.04, 1e-4, 1e-6])
+    sd = lambda P: np.sqrt(np.diag(P))  # noqa: E731
+    out["15.2"] = (ex.check_outage_sigma, sd(coast(P0, 2040)),
+                   [("from_gap_start", sd(coast(P0, 2000))), ("no_q", sd(coast(P0, 2040, q=False))),
+                    ("variance", np.diag(coast(P0, 2040)))], [])
+    # 16.1 --------------------------------------------------------------------------------
+    _, kf = filterpy_gain_at_second_fix()
+    Pi1 = coast(m.M0, 40)
+    prior1 = coast(P_first, 40)
+    only_last = Pi1 - Pi1[:, :2] @ np.linalg.solve(Pi1[:2, :2] + m.V, Pi1[:2, :])
+    C10 = phi(DT, 40) @ m.M0
+    Sxz = np.hstack([C10[:, :2], Pi1[:, :2]])
+    Czz = np.block([[m.M0[:2, :2], C10[:2, :2].T], [C10[:2, :2], Pi1[:2, :2]]])
+    no_v = Pi1 - Sxz @ np.linalg.solve(Czz, Sxz.T)
+    out["16.1"] = (ex.check_batch_two_fixes, kf.P,
+                   [("only_last", only_last), ("prior", prior1), ("unconditioned", Pi1),
+                    ("sign", 2 * Pi1 - kf.P), ("no_v", no_v)], [])
+    # 16.2 --------------------------------------------------------------------------------
+    p10 = CalibrationParams(duration=10.0)
+    P, P_prior, _, _ = covariance_sequence(p10)
+    xz = np.zeros((p10.n_gps, 3))
+    _, Ps = rts_smooth_fixes(p10, xz, xz, P_prior, P[p10.fix_indices])
+    full = covariance_sequence(CalibrationParams())[0][-1, 2, 2]
+    out["16.2"] = (ex.check_smoothed_bias_sigma, np.sqrt(Ps[0, 2, 2]),
+                   [("full_run", np.sqrt(full)), ("prior", np.sqrt(P_prior[-1, 2, 2])), ("filtered", 0.1),
+                    ("variance", Ps[0, 2, 2])], [])
+    return out
+
+
+CASES = cases()
+NUMERIC = sorted(CASES)
+
+
+def _assert_feedback(fb, exercise):
+    assert isinstance(fb, Feedback)
+    assert fb.exercise == exercise
+    assert "\n" not in str(fb)
+
+
+@pytest.mark.parametrize("exercise", NUMERIC)
+def test_accepts_right_answer(exercise):
+    check, right, _, also = CASES[exercise]
+    for answer in [right, *also]:
+        fb = check(answer)
+        _assert_feedback(fb, exercise)
+        assert fb.correct, (exercise, str(fb))
+        assert str(fb).startswith(f"✔ {exercise} correct")
+
+
+@pytest.mark.parametrize("exercise", NUMERIC)
+def test_rejects_each_wrong_answer_with_its_hint(exercise):
+    check, _, wrong, _ = CASES[exercise]
+    listed = {k for k in HINTS[exercise]} - {"shape", "tuple", "length", "type", "unknown", "missing"}
+    assert listed <= {k for k, _ in wrong}, f"untested hints of {exercise}: {listed - {k for k, _ in wrong}}"
+    for key, answer in wrong:
+        fb = check(answer)
+        _assert_feedback(fb, exercise)
+        assert not fb.correct and fb.answered
+        assert HINTS[exercise][key] in fb.message, (exercise, key, str(fb))
+        assert str(fb).startswith(f"✘ {exercise} not yet: ")
+
+
+@pytest.mark.parametrize("exercise", NUMERIC)
+def test_unknown_wrong_answer_gets_the_generic_hint(exercise):
+    check, right, _, _ = CASES[exercise]
+    fb = check(np.asarray(right, dtype=float) * 1.37 + 0.11)
+    assert not fb.correct and fb.message == GENERIC[exercise]
+
+
+@pytest.mark.parametrize("exercise", NUMERIC + ["01.3", "05.1", "07.2", "07.3"])
+def test_placeholder_is_not_answered_yet(exercise):
+    check = CASES[exercise][0] if exercise in CASES else FUNCTION_CHECKS[exercise]
+    for placeholder in (None, ...):
+        fb = check(placeholder)
+        assert not fb.correct and not fb.answered
+        assert str(fb).startswith(f"✘ {exercise} not answered yet: ")
+
+
+@pytest.mark.parametrize("exercise", NUMERIC)
+def test_malformed_answers_give_a_hint(exercise):
+    check, right, _, _ = CASES[exercise]
+    size = np.size(right)
+    for bad in ("0.5", "abc", np.zeros(size + 1), [[1, 2], [3]], {"a": 1}, lambda x: x, [np.nan] * size,
+                np.full(size, np.inf), object()):
+        fb = check(bad)
+        _assert_feedback(fb, exercise)
+        assert not fb.correct and fb.answered and fb.message
+
+
+@pytest.mark.parametrize("exercise", ["04.1", "04.3", "04.4", "16.1"])
+def test_transposed_or_flat_matrix_gets_a_shape_hint(exercise):
+    check, right, _, _ = CASES[exercise]
+    assert "expected shape (3, 3)" in check(np.ravel(right)).message
+
+
+def test_transposed_gain_gets_the_shape_hint():
+    right = CASES["05.2"][1]
+    for bad in (np.transpose(right), np.ravel(right)):
+        fb = ex.check_first_gain(bad)
+        assert not fb.correct and fb.message == HINTS["05.2"]["shape"]
+    fb = ex.check_second_gain(np.transpose(CASES["05.3"][1]))
+    assert not fb.correct and "expected shape (3, 2)" in fb.message
+
+
+# --------------------------------------------------------------------------------------------
+# function exercises: 01.3, 05.1, 07.2; the set exercise 07.3
+# --------------------------------------------------------------------------------------------
+FUNCTION_CHECKS = {"01.3": ex.check_euler_truth, "05.1": ex.check_predict_only, "07.2": ex.check_trapezoid_velocity,
+                   "07.3": ex.check_mismatch_failures}
+
+
+def test_euler_truth_check():
+    check = ex.check_euler_truth
+    assert check(lambda a, p0, v0, dt: euler_loop(a, p0, v0, dt)).correct
+    assert check(lambda a, p0, v0, dt: list(euler_loop(a, p0, v0, dt))).correct  # a list is fine too
+    for kind in ("new_v", "no_acc", "dt2", "right"):
+        fb = check(lambda a, p0, v0, dt, kind=kind: euler_loop(a, p0, v0, dt, kind))
+        assert not fb.correct and HINTS["01.3"][kind] in fb.message, (kind, str(fb))
+    fb = check(lambda a, p0, v0, dt: euler_loop(a, p0, v0, dt)[::-1])
+    assert HINTS["01.3"]["swapped"] in fb.message
+    fb = check(lambda a, p0, v0, dt: tuple(x[:-1] for x in euler_loop(a, p0, v0, dt)))
+    assert HINTS["01.3"]["length"] in fb.message
+    for out in (np.zeros(7), "p, v", (np.zeros(7), np.zeros(7), np.zeros(7)), 3.0):
+        fb = check(lambda a, p0, v0, dt, out=out: out)
+        assert not fb.correct and fb.message == HINTS["01.3"]["tuple"]
+    fb = check(lambda a, p0, v0, dt: (np.zeros(7), euler_loop(a, p0, v0, dt)[1]))
+    assert fb.message.startswith("v is right, p is not")
+
+
+def test_predict_only_check():
+    check = ex.check_predict_only
+
+    def right(x, P, Phi, Q, n):
+        return predict_loop(x, P, Phi, Q, n)
+
+    assert check(right).correct
+    assert check(lambda *a: (right(*a)[0].reshape(3, 1), right(*a)[1])).correct  # column x accepted
+    wrong = {"no_q": lambda x, P, Phi, Q, n: predict_loop(x, P, Phi, Q, n, q=False),
+             "transposed": lambda x, P, Phi, Q, n: predict_loop(x, P, Phi, Q, n, transposed=True),
+             "x_static": lambda x, P, Phi, Q, n: (x, predict_loop(x, P, Phi, Q, n)[1]),
+             "one_short": lambda x, P, Phi, Q, n: predict_loop(x, P, Phi, Q, n - 1),
+             "one_long": lambda x, P, Phi, Q, n: predict_loop(x, P, Phi, Q, n + 1),
+             "q_once": lambda x, P, Phi, Q, n: (predict_loop(x, P, Phi, Q, n)[0],
+                                                predict_loop(x, P, Phi, Q, n, q=False)[1] + Q),
+             "p_static": lambda x, P, Phi, Q, n: (predict_loop(x, P, Phi, Q, n)[0], P)}
+    assert set(wrong) == set(HINTS["05.1"]) - {"tuple"}
+    for key, func in wrong.items():
+        fb = check(func)
+        assert not fb.correct and HINTS["05.1"][key] in fb.message, (key, str(fb))
+    for out in (np.zeros(3), (np.zeros(3),), (np.zeros(2), np.eye(3)), (np.zeros(3), np.eye(2)), "x"):
+        fb = check(lambda *a, out=out: out)
+        assert fb.message == HINTS["05.1"]["tuple"]
+    fb = check(lambda x, P, Phi, Q, n: (predict_loop(x, P, Phi, Q, n)[0], np.eye(3)))
+    assert fb.message.startswith("x is right, P is not")
+
+
+def test_trapezoid_check():
+    check = ex.check_trapezoid_velocity
+
+    def loop(a, v0, dt, rule):
+        v = [v0]
+        for j in range(len(a) - 1):
+            step = {"trap": (a[j] + a[j + 1]) / 2, "left": a[j], "right": a[j + 1], "no_half": a[j] + a[j + 1]}[rule]
+            v.append(v[-1] + step * dt)
+        return np.array(v)
+
+    assert check(lambda a, v0, dt: loop(a, v0, dt, "trap")).correct
+    assert check(lambda a, v0, dt: list(loop(a, v0, dt, "trap"))).correct
+    for rule in ("left", "right", "no_half"):
+        fb = check(lambda a, v0, dt, rule=rule: loop(a, v0, dt, rule))
+        assert not fb.correct and HINTS["07.2"][rule] in fb.message
+    fb = check(lambda a, v0, dt: loop(a, v0, dt, "trap")[1:])
+    assert fb.message == HINTS["07.2"]["length"]
+    fb = check(lambda a, v0, dt: "v")
+    assert not fb.correct and "got str" in fb.message
+
+
+@pytest.mark.parametrize("exercise", ["01.3", "05.1", "07.2"])
+def test_function_checks_survive_half_written_functions(exercise):
+    check = FUNCTION_CHECKS[exercise]
+
+    def raises(*args):
+        raise ZeroDivisionError("division by zero\nsecond line")
+
+    def wrong_arity(a):
+        return a
+
+    for bad, name in ((raises, "ZeroDivisionError"), (wrong_arity, "TypeError"),
+                      (lambda *a: np.linalg.inv(np.zeros((3, 3))), "LinAlgError"),
+                      (lambda *a: undefined_name, "NameError")):  # noqa: F821
+        fb = check(bad)
+        _assert_feedback(fb, exercise)
+        assert not fb.correct and fb.answered and f"raised {name}" in fb.message, str(fb)
+    fb = check(lambda *a: None)
+    assert not fb.answered and "returns None" in fb.message
+    for not_a_function in (3.0, "def f(): pass", np.zeros(3)):
+        fb = check(not_a_function)
+        assert not fb.correct and fb.answered and "expected a function" in fb.message
+
+
+def test_mismatch_failures_check():
+    check = ex.check_mismatch_failures
+    m = error_state_model(CalibrationParams())
+    from dataclasses import replace
+
+    quiet = replace(m, W=m.W / 100, Q=m.Q / 100)
+    mc = run_monte_carlo(CalibrationParams(), n_runs=1000, seed=77, model=quiet)
+    failing = {name for name, c in mc.checks().items() if not c.passed}
+    # what the exercise teaches: too small a P fails the checks that compare the spread with P
+    assert failing == {"covariance", "nees"}
+    for answer in (failing, sorted(failing), tuple(failing), frozenset(failing)):
+        assert check(answer).correct
+    for extra, key in (("mean_error", "mean_error"), ("orthogonality", "orthogonality"), ("nis", "residual"),
+                       ("residual_variance", "residual"), ("residual_independence", "residual")):
+        fb = check(failing | {extra})
+        assert not fb.correct and HINTS["07.3"][key] in fb.message
+    for partial in ({"nees"}, {"covariance"}, set()):
+        fb = check(partial)
+        assert not fb.correct and fb.message == HINTS["07.3"]["missing"]
+        assert "nees" not in fb.message and "covariance" not in fb.message  # the hint does not name them
+    fb = check({"nees", "NEES"})
+    assert not fb.correct and "'NEES'" in fb.message and HINTS["07.3"]["unknown"] in fb.message
+    for bad in ("nees", 3, {1, 2}, np.array([1.0]), lambda: None):
+        fb = check(bad)
+        assert not fb.correct and fb.answered and HINTS["07.3"]["type"] in fb.message
+
+
+# --------------------------------------------------------------------------------------------
+# package-level properties
+# --------------------------------------------------------------------------------------------
+def test_every_check_is_exported_without_name_collisions():
+    assert len(ex.__all__) == 26 and len(set(ex.__all__)) == 26
+    for name in ex.__all__:
+        assert getattr(exercises, name) is getattr(ex, name), f"{name} is shadowed by another exercises module"
+    ids = set(CASES) | set(FUNCTION_CHECKS)
+    assert ids == set(HINTS) == set(GENERIC) == set(ex.PRAISE)
+    assert {i.split(".")[0] for i in ids} == {"01", "02", "03", "04", "05", "06", "07", "15", "16"}
+
+
+def _numbers(text):
+    return [float(x) for x in re.findall(r"(?<![\w.])\d+(?:\.\d+)?(?:e-?\d+)?", text)]
+
+
+@pytest.mark.parametrize("exercise", NUMERIC)
+def test_hints_do_not_contain_the_answer(exercise):
+    right = np.ravel(np.asarray(CASES[exercise][1], dtype=float))
+    values = [v for v in np.abs(right) if v not in (0.0, 1.0)]
+    for text in [*HINTS[exercise].values(), GENERIC[exercise]]:
+        for x in _numbers(text):
+            assert not any(np.isclose(x, v, rtol=1e-3) for v in values), (exercise, text, x)
+
+
+@pytest.mark.parametrize("call, name", [
+    (lambda: ex.check_euler_velocity_gap(0.1, omega=0.0), "omega"),
+    (lambda: ex.check_euler_velocity_gap(0.1, t=40.0), "t"),
+    (lambda: ex.check_euler_position_gap_max(0.1, omega=0.05), "omega"),
+    (lambda: ex.check_imu_std_band([1, 2], n=1), "n"),
+    (lambda: ex.check_gps_fix_indices([0], gps_rate=7.0), "gps_rate"),
+    (lambda: ex.check_gps_dz([0, 0], z=(1.0,)), "z"),
+    (lambda: ex.check_first_gain(np.zeros((3, 2)), V=np.eye(3)), "V"),
+    (lambda: ex.check_mc_nis_bounds([1, 2], alpha=1.5), "alpha"),
+    (lambda: ex.check_fisher_band([0, 1], rho=1.0), "rho"),
+    (lambda: ex.check_mismatch_failures({"nees"}, n_runs=1), "n_runs"),
+    (lambda: ex.check_outage_mask(np.zeros(151), windows=[(7.0, 5.0)]), "windows"),
+    (lambda: ex.check_outage_sigma(np.zeros(3), P0=-np.eye(3)), "P0"),
+    (lambda: ex.check_outage_sigma(np.zeros(3), start=0.0, end=2.0), "start"),
+    (lambda: ex.check_smoothed_bias_sigma(0.1, duration=-1.0), "duration"),
+])
+def test_bad_parameters_raise_naming_them(call, name):
+    with pytest.raises(ValueError, match=name):
+        call()
+
+
+def test_keyword_parameters_change_the_right_answer():
+    # 02.1 with other values; 06.1 with another N; 04.1 at 50 Hz; 15.2 another window
+    assert ex.check_imu_drift([0 - 0.1 * 50, -0.1 * 10], b=0.1, dp0=0.0, dv0=0.0, t=10.0).correct
+    assert ex.check_mc_nis_bounds(two_sided(40, 20), n_runs=20).correct
+    assert ex.check_phi_100hz(phi(0.02), imu_rate=50.0).correct
+    P0 = np.diag([0.04, 1e-4, 1e-6])
+    assert ex.check_outage_sigma(np.sqrt(np.diag(coast(P0, 440))), P0=P0, start=3.0, end=5.0).correct
