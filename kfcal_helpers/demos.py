@@ -7,8 +7,7 @@ the compute functions on their own.
 
 * Calibration (notebook 17): :func:`compute_calibration_demo` runs the batch filter of
   :mod:`kfcal_helpers.calibration` for one parameter set: the covariances and gains once
-  (:func:`covariances_by_fix`, the numbers of
-  :func:`~kfcal_helpers.calibration.covariance_sequence`, propagated fix to fix), one 200 Hz
+  (:func:`~kfcal_helpers.calibration.covariance_sequence`, propagated fix to fix), one 200 Hz
   realization (``simulate``) and a 200-realization ensemble drawn at the fixes
   (:func:`sample_noise_at_fixes`), whose errors come from the filter's error recursion
   (:func:`filter_errors_at_fixes`, the numbers ``batch_filter`` gives on the same draws); the
@@ -34,7 +33,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .calibration import CalibrationParams, Simulation, error_state_model, outage_mask, phi_power, simulate
+from .calibration import (CalibrationParams, Simulation, between_fixes, covariance_sequence, error_state_model,
+                          outage_mask, phi_power, simulate)
 from .calibration.error_model import ErrorStateModel
 from .consistency import chi2_bounds
 from .coop import N_MEAS, STATE_LABELS, TUNED_Q_SCALE, CoopLog, run_filter
@@ -43,7 +43,6 @@ from .validation import require_choice, require_finite, require_int, require_pos
 
 __all__ = [
     "valid_gps_rates",
-    "covariances_by_fix",
     "sample_noise_at_fixes",
     "noise_of_simulation",
     "filter_errors_at_fixes",
@@ -99,66 +98,6 @@ def _missing(params: CalibrationParams, missing_fixes) -> np.ndarray:
     return missing
 
 
-def _noise_between_fixes(params: CalibrationParams, m: ErrorStateModel):
-    """Phi^k (k = 0..r-1), Phi^r, and Q_k = sum_{l<k} Phi^l Q Phi^l^T for k = 0..r: shapes
-    (r, 3, 3), (3, 3), (r + 1, 3, 3)."""
-    r = params.steps_per_fix
-    powers = phi_power(params, np.arange(r + 1))
-    g = powers[:r] @ m.Gamma  # Phi^l Gamma, (r, 3)
-    Qk = np.zeros((r + 1, 3, 3))
-    np.cumsum(m.W * g[:, :, None] * g[:, None, :], axis=0, out=Qk[1:])
-    return powers[:r], powers[r], Qk
-
-
-def covariances_by_fix(params: CalibrationParams, missing_fixes=None):
-    """The filter's covariances and gains, propagated from fix to fix.
-
-    The same numbers as :func:`~kfcal_helpers.calibration.covariance_sequence` (the same
-    update: ``K = P H^T S^-1`` and the Joseph form), but between fixes the ``r`` predict
-    steps are taken at once, ``P(t_i + k dt) = Phi^k P_i Phi^k^T + Q_k`` with
-    ``Q_k = sum_{l<k} Phi^l Q Phi^l^T``, so the Python loop runs over the ``n_gps`` fixes
-    instead of the ``n_imu`` IMU samples (about 7 times faster at 5 Hz).
-
-    Parameters
-    ----------
-    params : CalibrationParams
-    missing_fixes : optional bool array (n_gps,), True where no update happens
-
-    The filter's model is the true one, ``error_state_model(params)``.
-
-    Returns
-    -------
-    P (n_imu, 3, 3), P_prior (n_gps, 3, 3), S (n_gps, 2, 2), K (n_gps, 3, 2): the tuple that
-    ``batch_filter(..., covariances=...)`` accepts.  Units: m, m/s, m/s^2 squared.
-    """
-    m = _model(params)
-    missing = _missing(params, missing_fixes)
-    n_gps, r = params.n_gps, params.steps_per_fix
-    powers, Phi_r, Qk = _noise_between_fixes(params, m)
-    H, R = m.H, m.V
-    I3 = np.eye(3)
-    P_prior = np.empty((n_gps, 3, 3))
-    P_post = np.empty((n_gps, 3, 3))
-    S = np.empty((n_gps, 2, 2))
-    K = np.zeros((n_gps, 3, 2))
-    Pj = m.M0.copy()
-    for i in range(n_gps):
-        P_prior[i] = Pj
-        PHT = Pj @ H.T
-        S[i] = H @ PHT + R
-        if not missing[i]:
-            (s00, s01), (s10, s11) = S[i].tolist()  # explicit 2x2 inverse: np.linalg.inv costs more here
-            K[i] = PHT @ (np.array([[s11, -s01], [-s10, s00]]) / (s00 * s11 - s01 * s10))
-            I_KH = I3 - K[i] @ H
-            Pj = I_KH @ Pj @ I_KH.T + K[i] @ R @ K[i].T
-        P_post[i] = Pj
-        Pj = Phi_r @ Pj @ Phi_r.T + Qk[r]
-    # every IMU sample: P(t_i + k dt) = Phi^k P_post[i] Phi^k^T + Q_k, k = 0..r-1
-    P = np.einsum("kab,ibc,kdc->ikad", powers, P_post, powers, optimize=True) + Qk[None, :r]
-    P = P.reshape(n_gps * r, 3, 3)[: params.n_imu]
-    return P, P_prior, S, K
-
-
 def sample_noise_at_fixes(params: CalibrationParams, n_runs: int, rng: np.random.Generator):
     """Random draws that drive the filter's error from fix to fix, for ``n_runs`` realizations.
 
@@ -184,7 +123,7 @@ def _sample_noise_time_major(params, n_runs, rng):
     if not isinstance(rng, np.random.Generator):
         raise ValueError("rng must be a numpy.random.Generator, e.g. numpy.random.default_rng(seed)")
     n_gps = params.n_gps
-    Qr = _noise_between_fixes(params, m)[2][-1]
+    Qr = between_fixes(params, m)[1][-1]
     L = np.linalg.cholesky(Qr[:2, :2])  # Q_r is zero in the bias row and column: factor the (p, v) block
     e0 = rng.standard_normal((n_runs, 3)) * np.sqrt(np.diag(m.M0))
     z = rng.standard_normal((n_gps - 1, n_runs, 2))
@@ -222,7 +161,7 @@ def filter_errors_at_fixes(params: CalibrationParams, covariances, e0, w, eta):
     Parameters
     ----------
     params : CalibrationParams
-    covariances : output of :func:`covariances_by_fix` or ``covariance_sequence`` (the gains)
+    covariances : output of ``covariance_sequence`` (the gains)
     e0 (n, 3), w (n, n_gps - 1, 3), eta (n, n_gps, 2) : as :func:`sample_noise_at_fixes` returns
 
     Returns
@@ -350,7 +289,7 @@ def compute_calibration_demo(gps_rate: float = 5.0, W: float = 0.0004, gps_pos_v
         :func:`sample_noise_at_fixes`) or "simulate" (the full 200 Hz simulation, slower)
     alpha : significance level of the ensemble band, in (0, 1)
 
-    What is computed: the covariances and gains once (:func:`covariances_by_fix`); one
+    What is computed: the covariances and gains once (``covariance_sequence``); one
     realization at 200 Hz (``simulate``) and the ensemble's noises; the filter's errors at the
     fixes of all of them in one loop (:func:`filter_errors_at_fixes`, the numbers
     ``batch_filter`` gives); the realization's estimate between fixes
@@ -376,7 +315,7 @@ def compute_calibration_demo(gps_rate: float = 5.0, W: float = 0.0004, gps_pos_v
         missing = outage_mask(params, [outage], name="outage")
         outage = (float(outage[0]), float(outage[1]))
 
-    cov = covariances_by_fix(params, missing)
+    cov = covariance_sequence(params, missing)
     rng_one, rng_ens = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
 
     sim = simulate(params, 1, rng_one, missing_fixes=missing)  # the realization drawn at 200 Hz

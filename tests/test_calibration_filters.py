@@ -5,7 +5,7 @@ import pytest
 
 from kfcal_helpers.calibration import (
     CalibrationParams, batch_filter, covariance_sequence, error_state_model, make_kalman_filter,
-    phi_power, run_filterpy, simulate,
+    outage_mask, phi_power, run_filterpy, simulate,
 )
 
 P0 = CalibrationParams()
@@ -81,6 +81,19 @@ def test_batch_equals_filterpy_with_missing_fixes():
     Ppp = b.P_post[:, 0, 0]
     assert np.all(np.diff(Ppp[19:45]) > 0) and Ppp[45] < Ppp[44]
     np.testing.assert_array_equal(b.K[20:45], 0.0)
+
+
+@pytest.mark.parametrize("rate, outage", [(1.0, None), (5.0, [(10.0, 16.0)]), (50.0, [(3.0, 4.5)])])
+def test_covariance_sequence_fix_to_fix_equals_filterpy_step_by_step(rate, outage):
+    """covariance_sequence takes the predict steps between fixes at once; filterpy takes them one by one."""
+    p = CalibrationParams(gps_rate=rate)
+    missing = np.zeros(p.n_gps, bool) if outage is None else outage_mask(p, outage)
+    dz = np.zeros((p.n_gps, 2))
+    dz[missing] = np.nan
+    f = run_filterpy(p, dz)
+    for fast, slow in zip(covariance_sequence(p, missing), (f.P, f.P_prior, f.S, f.K)):
+        assert fast.shape == slow.shape
+        assert np.allclose(fast, slow, rtol=1e-9, atol=0)
 
 
 def test_covariance_symmetric_positive_definite():

@@ -15,8 +15,8 @@ from kfcal_helpers.calibration import (CalibrationParams, batch_filter, covarian
 from kfcal_helpers.coop import (CoopParams, generate_log, jacobian_A, jacobian_C, measure, measurement_residual,
                                 nominal_trajectory, run_filter, state_residual)
 from kfcal_helpers.demos import (MEASUREMENT_NAMES, CalibrationDemoFigure, CoopDemoFigure, calibration_controls,
-                                 compute_calibration_demo, compute_coop_demo, coop_controls, covariances_by_fix,
-                                 draw_calibration_demo, draw_coop_demo, estimate_between_fixes, figure_png,
+                                 compute_calibration_demo, compute_coop_demo, coop_controls, draw_calibration_demo,
+                                 draw_coop_demo, estimate_between_fixes, figure_png,
                                  filter_errors_at_fixes, noise_of_simulation, sample_noise_at_fixes, valid_gps_rates)
 from kfcal_helpers.exercises import (check_demo_first_fix_sigma, check_demo_lost_directions, check_demo_ratio_band,
                                      check_demo_subset_nis_bounds)
@@ -35,15 +35,6 @@ def test_valid_gps_rates_divide_the_imu_rate():
     assert valid_gps_rates(100.0, 100.0)[-1] == 100.0
     with pytest.raises(ValueError, match="imu_rate"):
         valid_gps_rates(200.5)
-
-
-@pytest.mark.parametrize("rate, outage", [(1.0, None), (5.0, [(10.0, 16.0)]), (50.0, [(3.0, 4.5)])])
-def test_covariances_by_fix_equal_covariance_sequence(rate, outage):
-    p = CalibrationParams(gps_rate=rate)
-    missing = None if outage is None else outage_mask(p, outage)
-    for fast, slow in zip(covariances_by_fix(p, missing), covariance_sequence(p, missing)):
-        assert fast.shape == slow.shape
-        assert np.allclose(fast, slow, rtol=1e-9, atol=0)
 
 
 def test_demo_sigma_is_the_filters_and_its_realization_is_filterpys():

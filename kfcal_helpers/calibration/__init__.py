@@ -11,7 +11,7 @@ and the command line in :mod:`.cli`.
 """
 
 from .error_model import ErrorStateModel, error_state_model, phi_power
-from .filters import FilterResult, batch_filter, covariance_sequence, make_kalman_filter, run_filterpy
+from .filters import FilterResult, batch_filter, between_fixes, covariance_sequence, make_kalman_filter, run_filterpy
 from .montecarlo import CHECK_NAMES, ENGINES, Check, MonteCarloResult, format_checks, run_monte_carlo
 from .params import CalibrationParams
 from .outages import outage_mask, parse_outage
@@ -21,7 +21,7 @@ from .simulation import TRUTH_MODELS, Simulation, acceleration, analytic_truth, 
 __all__ = [
     "CalibrationParams", "Simulation", "simulate", "acceleration", "analytic_truth", "integrate_left",
     "TRUTH_MODELS", "ErrorStateModel", "error_state_model", "phi_power", "FilterResult",
-    "make_kalman_filter", "run_filterpy", "covariance_sequence", "batch_filter", "Check",
+    "make_kalman_filter", "run_filterpy", "between_fixes", "covariance_sequence", "batch_filter", "Check",
     "MonteCarloResult", "run_monte_carlo", "format_checks", "CHECK_NAMES", "ENGINES",
     "outage_mask", "parse_outage", "batch_conditioning_covariance", "prior_covariances_at_fixes",
     "rts_smooth_fixes",

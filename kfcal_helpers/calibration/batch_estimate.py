@@ -26,19 +26,10 @@ import scipy.linalg
 
 from ..validation import require_int
 from .error_model import ErrorStateModel
-from .filters import _model
+from .filters import _matrix_powers, _model
 from .params import CalibrationParams
 
 __all__ = ["prior_covariances_at_fixes", "batch_conditioning_covariance", "rts_smooth_fixes"]
-
-
-def _matrix_powers(F: np.ndarray, n: int) -> np.ndarray:
-    """``F^j`` for ``j = 0..n-1`` (any model's Phi, not only the true one), shape (n, 3, 3)."""
-    out = np.empty((n, 3, 3))
-    out[0] = np.eye(3)
-    for j in range(1, n):
-        out[j] = F @ out[j - 1]
-    return out
 
 
 def prior_covariances_at_fixes(params: CalibrationParams, model: ErrorStateModel | None = None) -> np.ndarray:

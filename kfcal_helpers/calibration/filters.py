@@ -25,7 +25,7 @@ from ..validation import require_shape
 from .error_model import ErrorStateModel, error_state_model
 from .params import CalibrationParams
 
-__all__ = ["FilterResult", "make_kalman_filter", "run_filterpy", "covariance_sequence", "batch_filter"]
+__all__ = ["FilterResult", "make_kalman_filter", "run_filterpy", "between_fixes", "covariance_sequence", "batch_filter"]
 
 
 @dataclass
@@ -135,11 +135,40 @@ def run_filterpy(params: CalibrationParams, dz, model: ErrorStateModel | None = 
     return FilterResult(x, P, x_prior, x[idx].copy(), P_prior, P[idx].copy(), residual, S, K)
 
 
+def _matrix_powers(F: np.ndarray, n: int) -> np.ndarray:
+    """``F^j`` for ``j = 0..n-1`` (any model's Phi, not only the true one), shape (n, 3, 3)."""
+    out = np.empty((n, 3, 3))
+    out[0] = np.eye(3)
+    for j in range(1, n):
+        out[j] = F @ out[j - 1]
+    return out
+
+
+def between_fixes(params: CalibrationParams, model: ErrorStateModel | None = None):
+    """The ``r = steps_per_fix`` predict-only steps between two fixes, taken at once.
+
+    Returns
+    -------
+    powers : (r + 1, 3, 3) ``Phi^k`` for k = 0..r
+    Qk : (r + 1, 3, 3) ``Q_k = sum_{l<k} Phi^l Q Phi^l^T`` for k = 0..r (``Q_0 = 0``), so that
+        k predict steps from ``(x, P)`` give ``(Phi^k x, Phi^k P Phi^k^T + Q_k)``; units of P
+    For the model the filter assumes (default: the true one).
+    """
+    m = _model(params, model)
+    r = params.steps_per_fix
+    powers = _matrix_powers(m.Phi, r + 1)
+    Qk = np.zeros((r + 1, 3, 3))
+    np.cumsum(np.einsum("kab,bc,kdc->kad", powers[:r], m.Q, powers[:r]), axis=0, out=Qk[1:])
+    return powers, Qk
+
+
 def covariance_sequence(params: CalibrationParams, missing_fixes=None, model: ErrorStateModel | None = None):
     """The data-independent part of the filter: covariances and gains.
 
-    Uses exactly filterpy's formulas (predict ``F P F^T + Q``; update with
-    ``K = P H^T S^-1`` and the Joseph form).
+    The numbers of filterpy's formulas (predict ``F P F^T + Q``; update with
+    ``K = P H^T S^-1`` and the Joseph form), with the ``r`` predict steps between fixes
+    taken at once (:func:`between_fixes`): ``P(t_i + k dt) = Phi^k P_i Phi^k^T + Q_k``, so
+    the Python loop runs over the fixes, not over the IMU samples.
 
     Parameters
     ----------
@@ -152,31 +181,31 @@ def covariance_sequence(params: CalibrationParams, missing_fixes=None, model: Er
     P (n_imu, 3, 3), P_prior (n_gps, 3, 3), S (n_gps, 2, 2), K (n_gps, 3, 2)
     """
     m = _model(params, model)
-    n_imu, n_gps, r = params.n_imu, params.n_gps, params.steps_per_fix
+    n_gps, r = params.n_gps, params.steps_per_fix
     missing = np.zeros(n_gps, bool) if missing_fixes is None else np.asarray(missing_fixes, bool)
     if missing.shape != (n_gps,):
         raise ValueError(f"missing_fixes must have shape ({n_gps},), got {missing.shape}")
-    F, Q, H, R = m.Phi, m.Q, m.H, m.V
+    powers, Qk = between_fixes(params, m)
+    H, R = m.H, m.V
     I3 = np.eye(3)
-    P = np.empty((n_imu, 3, 3))
     P_prior = np.empty((n_gps, 3, 3))
+    P_post = np.empty((n_gps, 3, 3))
     S = np.empty((n_gps, 2, 2))
     K = np.zeros((n_gps, 3, 2))
     Pj = m.M0.copy()
-    for j in range(n_imu):
-        i, k = divmod(j, r)
-        if k == 0:
-            P_prior[i] = Pj
-            PHT = Pj @ H.T
-            S[i] = H @ PHT + R
-            if not missing[i]:
-                K[i] = PHT @ np.linalg.inv(S[i])
-                I_KH = I3 - K[i] @ H
-                Pj = I_KH @ Pj @ I_KH.T + K[i] @ R @ K[i].T
-        P[j] = Pj
-        if j < n_imu - 1:
-            Pj = F @ Pj @ F.T + Q
-    return P, P_prior, S, K
+    for i in range(n_gps):
+        P_prior[i] = Pj
+        PHT = Pj @ H.T
+        S[i] = H @ PHT + R
+        if not missing[i]:
+            K[i] = PHT @ np.linalg.inv(S[i])
+            I_KH = I3 - K[i] @ H
+            Pj = I_KH @ Pj @ I_KH.T + K[i] @ R @ K[i].T
+        P_post[i] = Pj
+        Pj = powers[r] @ Pj @ powers[r].T + Qk[r]
+    # every IMU sample: P(t_i + k dt) = Phi^k P_post[i] Phi^k^T + Q_k, k = 0..r-1
+    P = np.einsum("kab,ibc,kdc->ikad", powers[:r], P_post, powers[:r], optimize=True) + Qk[None, :r]
+    return P.reshape(n_gps * r, 3, 3)[: params.n_imu], P_prior, S, K
 
 
 def batch_filter(params: CalibrationParams, dz, full_rate: bool = True, covariances=None,
@@ -208,7 +237,8 @@ def batch_filter(params: CalibrationParams, dz, full_rate: bool = True, covarian
     P, P_prior, S, K = covariances
     n, n_gps, r = dz.shape[0], params.n_gps, params.steps_per_fix
     H = m.H
-    Phi_r = np.linalg.matrix_power(m.Phi, r)
+    powers = _matrix_powers(m.Phi, r + 1)
+    Phi_r = powers[r]
     x_prior = np.empty((n, n_gps, 3))
     x_post = np.empty((n, n_gps, 3))
     residual = np.full((n, n_gps, 2), np.nan)
@@ -223,10 +253,6 @@ def batch_filter(params: CalibrationParams, dz, full_rate: bool = True, covarian
     x = None
     if full_rate:
         # Between fixes the estimate is only predicted: x(t_i + k dt) = Phi^k x_post(t_i).
-        powers = np.empty((r, 3, 3))
-        powers[0] = np.eye(3)
-        for k in range(1, r):
-            powers[k] = m.Phi @ powers[k - 1]
-        x = np.einsum("kab,nib->nika", powers, x_post).reshape(n, n_gps * r, 3)[:, : params.n_imu]
+        x = np.einsum("kab,nib->nika", powers[:r], x_post).reshape(n, n_gps * r, 3)[:, : params.n_imu]
     idx = params.fix_indices
     return FilterResult(x, P, x_prior, x_post, P_prior, P[idx].copy(), residual, S, K)

@@ -15,8 +15,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import stats
 
-__all__ = ["Feedback", "unanswered", "as_array", "matches", "judge", "GENERIC_HINT"]
+__all__ = ["Feedback", "unanswered", "as_array", "matches", "judge", "chi2_average_bounds", "GENERIC_HINT"]
 
 GENERIC_HINT = "compare your answer with the formula in the notebook, term by term"
 
@@ -93,3 +94,17 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
     if a.size != e.size:
         return Feedback(exercise, False, f"expected shape {e.shape}, got {a.shape}")
     return Feedback(exercise, False, hint)
+
+
+def chi2_average_bounds(dim: int, n: int, alpha: float, *, dof: int | None = None, divide_by: float | None = None,
+                        one_sided: bool = False) -> np.ndarray:
+    """``[lower, upper]`` of the average of ``n`` chi-square(``dim``) variables at level ``alpha``:
+    ``chi2.ppf((alpha/2, 1 - alpha/2), dim n) / n`` (as :func:`kfcal_helpers.consistency.chi2_bounds`).
+
+    The keywords build the common wrong answers the checks recognise: ``dof`` (other degrees of
+    freedom), ``divide_by`` (another divisor; 1 = not divided), ``one_sided`` (quantiles
+    ``alpha`` and ``1 - alpha``).
+    """
+    dof = dim * n if dof is None else dof
+    lo, hi = (alpha, 1 - alpha) if one_sided else (alpha / 2, 1 - alpha / 2)
+    return np.array([stats.chi2.ppf(lo, dof), stats.chi2.ppf(hi, dof)]) / (n if divide_by is None else divide_by)

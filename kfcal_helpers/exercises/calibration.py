@@ -27,7 +27,7 @@ from ..calibration import (CHECK_NAMES, CalibrationParams, acceleration, analyti
                            integrate_left, outage_mask, phi_power, run_monte_carlo)
 from ..consistency import chi2_bounds
 from ..validation import require_covariance, require_finite, require_int, require_positive
-from ._core import Feedback, as_array, judge, unanswered
+from ._core import Feedback, as_array, chi2_average_bounds, judge, unanswered
 
 __all__ = [
     # 01 truth model
@@ -369,13 +369,6 @@ def _close(a, b, rtol: float = 1e-9, atol: float = 1e-12) -> bool:
     return bool(np.all(np.isfinite(a)) and np.allclose(a, b, rtol=rtol, atol=atol))
 
 
-def _bounds(dim: int, dof_runs: int, level: float, divide_by: float | None = None, two_sided: bool = True):
-    """χ² bounds of the average (``divide_by`` defaults to ``dof_runs``)."""
-    n = dof_runs if divide_by is None else divide_by
-    lo_q, hi_q = (level / 2, 1 - level / 2) if two_sided else (level, 1 - level)
-    return np.array([stats.chi2.ppf(lo_q, dim * dof_runs), stats.chi2.ppf(hi_q, dim * dof_runs)]) / n
-
-
 # ----------------------------------------------------------------------------------------
 # 01 truth model
 # ----------------------------------------------------------------------------------------
@@ -511,10 +504,11 @@ def check_imu_std_band(answer, *, sigma: float = 0.02, n: int = 50, alpha: float
     sigma = require_positive("sigma", sigma)
     n = require_int("n", n, minimum=2)
     alpha = _alpha(alpha)
-    right = sigma * np.sqrt(_bounds(1, n - 1, alpha))
-    wrong = [("n_dof", sigma * np.sqrt(_bounds(1, n, alpha))), ("variance", sigma**2 * _bounds(1, n - 1, alpha)),
-             ("one_sided", sigma * np.sqrt(_bounds(1, n - 1, alpha, two_sided=False))),
-             ("no_divide", sigma * np.sqrt(_bounds(1, n - 1, alpha, divide_by=1)))]
+    right = sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha))
+    wrong = [("n_dof", sigma * np.sqrt(chi2_average_bounds(1, n, alpha))),
+             ("variance", sigma**2 * chi2_average_bounds(1, n - 1, alpha)),
+             ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, one_sided=True))),
+             ("no_divide", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, divide_by=1)))]
     return _numeric("02.3", answer, right, wrong)
 
 
@@ -562,10 +556,11 @@ def check_gps_rms_band(answer, *, sigma: float = 0.04, n: int = 100, alpha: floa
     sigma = require_positive("sigma", sigma)
     n = require_int("n", n, minimum=2)
     alpha = _alpha(alpha)
-    right = sigma * np.sqrt(_bounds(1, n, alpha))
+    right = sigma * np.sqrt(chi2_average_bounds(1, n, alpha))
     z = stats.norm.ppf(1 - alpha / 2)
-    wrong = [("n_minus_1", sigma * np.sqrt(_bounds(1, n - 1, alpha))), ("variance", sigma**2 * _bounds(1, n, alpha)),
-             ("one_sided", sigma * np.sqrt(_bounds(1, n, alpha, two_sided=False))),
+    wrong = [("n_minus_1", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha))),
+             ("variance", sigma**2 * chi2_average_bounds(1, n, alpha)),
+             ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n, alpha, one_sided=True))),
              ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * n)))]
     return _numeric("03.3", answer, right, wrong)
 
@@ -726,9 +721,9 @@ def check_mc_nis_bounds(answer, *, n_runs: int = 50, alpha: float = 0.05) -> Fee
     N = require_int("n_runs", n_runs, minimum=2)
     alpha = _alpha(alpha)
     right = chi2_bounds(2, N, alpha)
-    wrong = [("dim3", _bounds(3, N, alpha)), ("dim1", _bounds(1, N, alpha)),
-             ("one_sided", _bounds(2, N, alpha, two_sided=False)), ("sum", _bounds(2, N, alpha) * N),
-             ("n_minus_1", _bounds(2, N - 1, alpha))]
+    wrong = [("dim3", chi2_average_bounds(3, N, alpha)), ("dim1", chi2_average_bounds(1, N, alpha)),
+             ("one_sided", chi2_average_bounds(2, N, alpha, one_sided=True)), ("sum", chi2_average_bounds(2, N, alpha) * N),
+             ("n_minus_1", chi2_average_bounds(2, N - 1, alpha))]
     return _numeric("06.1", answer, right, wrong)
 
 
@@ -760,9 +755,10 @@ def check_simultaneous_nees_band(answer, *, n_runs: int = 1000, n_fixes: int = 1
     alpha = _alpha(alpha)
     level = alpha / (n_fixes * n_checks)
     right = chi2_bounds(3, N, level)
-    wrong = [("pointwise", _bounds(3, N, alpha)), ("fixes_only", _bounds(3, N, alpha / n_fixes)),
-             ("checks_only", _bounds(3, N, alpha / n_checks)), ("one_sided", _bounds(3, N, level, two_sided=False)),
-             ("dim2", _bounds(2, N, level))]
+    wrong = [("pointwise", chi2_average_bounds(3, N, alpha)), ("fixes_only", chi2_average_bounds(3, N, alpha / n_fixes)),
+             ("checks_only", chi2_average_bounds(3, N, alpha / n_checks)),
+             ("one_sided", chi2_average_bounds(3, N, level, one_sided=True)),
+             ("dim2", chi2_average_bounds(2, N, level))]
     return _numeric("06.3", answer, right, wrong)
 
 

@@ -58,7 +58,7 @@ from ..coop.model import (
     wrap_state,
 )
 from ..validation import require_finite, require_int, require_positive, require_shape
-from ._core import GENERIC_HINT, Feedback, as_array, judge, matches, unanswered
+from ._core import GENERIC_HINT, Feedback, as_array, chi2_average_bounds, judge, matches, unanswered
 
 __all__ = [
     "check_coop_step_map",
@@ -494,14 +494,6 @@ def check_coop_obs_rank(answer, windows=RANK_WINDOWS, start: int = 0) -> Feedbac
 
 # ---------------------------------------------------------------------------
 # 10: LKF
-def _quantile_bounds(dim, n, alpha, *, dof=None, divide=True, one_sided=False):
-    """(lower, upper) of the average of n chi-square(dim) variables, with optional mistakes."""
-    dof = dim * n if dof is None else dof
-    lo, hi = (alpha, 1 - alpha) if one_sided else (alpha / 2, 1 - alpha / 2)
-    b = np.array([stats.chi2.ppf(lo, dof), stats.chi2.ppf(hi, dof)])
-    return b / n if divide else b
-
-
 def _normal_bounds(dim, n, alpha):
     z = stats.norm.ppf(1 - alpha / 2)
     return np.array([dim - z * math.sqrt(2 * dim / n), dim + z * math.sqrt(2 * dim / n)])
@@ -519,11 +511,13 @@ def check_coop_mc_bounds(answer, n_runs: int = MC_RUNS, alpha: float = 0.05) -> 
     expected = np.array([chi2_bounds(N_STATES, N, alpha), chi2_bounds(N_MEAS, N, alpha)])
 
     def both(**kw):
-        return np.array([_quantile_bounds(N_STATES, N, alpha, **kw), _quantile_bounds(N_MEAS, N, alpha, **kw)])
+        return np.array([chi2_average_bounds(N_STATES, N, alpha, **kw), chi2_average_bounds(N_MEAS, N, alpha, **kw)])
 
-    pairs = [(both(one_sided=True), "one_sided"), (expected[::-1], "swapped_dims"), (both(divide=False), "not_divided"),
-             (np.array([_quantile_bounds(N_STATES, N, alpha, dof=N), _quantile_bounds(N_MEAS, N, alpha, dof=N)]), "dof_N"),
-             (np.array([_quantile_bounds(N_STATES, N - 1, alpha), _quantile_bounds(N_MEAS, N - 1, alpha)]), "N_minus_1"),
+    pairs = [(both(one_sided=True), "one_sided"), (expected[::-1], "swapped_dims"), (both(divide_by=1), "not_divided"),
+             (np.array([chi2_average_bounds(N_STATES, N, alpha, dof=N), chi2_average_bounds(N_MEAS, N, alpha, dof=N)]),
+              "dof_N"),
+             (np.array([chi2_average_bounds(N_STATES, N - 1, alpha), chi2_average_bounds(N_MEAS, N - 1, alpha)]),
+              "N_minus_1"),
              (expected[:, ::-1], "order"),
              (np.array([_normal_bounds(N_STATES, N, alpha), _normal_bounds(N_MEAS, N, alpha)]), "normal")]
     if N != 50:
@@ -757,8 +751,8 @@ def check_coop_circular_mean(fn) -> Feedback:
 # 13: the log; fewer measurements
 def _nis_bounds_wrong(K, alpha, extra):
     """Common wrong answers for the time-averaged NIS bounds of K updates."""
-    pairs = [(_quantile_bounds(N_MEAS, K, alpha, one_sided=True), "one_sided"),
-             (_quantile_bounds(N_MEAS, K, alpha, dof=K), "dof_K"),
+    pairs = [(chi2_average_bounds(N_MEAS, K, alpha, one_sided=True), "one_sided"),
+             (chi2_average_bounds(N_MEAS, K, alpha, dof=K), "dof_K"),
              (np.array(chi2_bounds(N_STATES, K, alpha)), "dim6")]
     return pairs + extra
 
@@ -775,7 +769,7 @@ def check_coop_log_nis_bounds(answer, n_samples: int = LOG_SAMPLES, alpha: float
     K = n_samples - 1
     expected = np.array(chi2_bounds(N_MEAS, K, alpha))
     extra = [(np.array(chi2_bounds(N_MEAS, K + 1, alpha)), "count_nan"),
-             (_quantile_bounds(N_MEAS, K, alpha, divide=False), "not_divided"),
+             (chi2_average_bounds(N_MEAS, K, alpha, divide_by=1), "not_divided"),
              (_normal_bounds(N_MEAS, K, alpha), "normal")]
     if abs(alpha - 0.05) > 1e-12:
         extra.append((np.array(chi2_bounds(N_MEAS, K, 0.05)), "notebook_alpha"))
