@@ -10,11 +10,13 @@ model, the truth is the correct one):
 * ``m0_swapped`` -- M0 with the position and velocity variances swapped;
 * ``w_is_gps_velocity_var`` -- W = 0.0016 (the GPS velocity variance) instead of 0.0004;
 * ``gps_interval_0_02`` -- the GPS interval taken as 0.02 s: the filter propagates over
-  0.02 s between fixes (its per-step Phi and Q are those of dt / 10).
+  0.02 s between fixes (its per-step Phi and Q are those of dt / 10);
+* ``v0_zero`` -- the filter's prior mean of the initial velocity 0 instead of 100 m/s: its
+  prior mean of ``dv = v - v_c`` is ``0 - 100`` m/s (the IMU dead reckoning starts at 100 m/s).
 
 Cooperative localization (50 truth-model runs):
 
-* ``ekf_no_wrap`` -- EKF innovations without bearing wrapping (SPEC truth model);
+* ``ekf_no_wrap`` -- EKF innovations without bearing wrapping (the course's truth model);
 * ``lkf_no_nominal`` -- LKF innovation ``y - H dx-`` without the nominal measurement
   subtracted (small-perturbation truth model, where the correct LKF is consistent).
 
@@ -57,6 +59,7 @@ CALIBRATION_MISTAKES = {
     "m0_swapped": "M0 with position and velocity variances swapped",
     "w_is_gps_velocity_var": "W = 0.0016, the GPS velocity variance",
     "gps_interval_0_02": "GPS interval taken as 0.02 s",
+    "v0_zero": "prior mean of the initial velocity 0 instead of 100 m/s",
 }
 
 #: cooperative-localization mistakes, each after its correct filter
@@ -87,6 +90,8 @@ def mistaken_model(params: CalibrationParams, mistake: str) -> ErrorStateModel:
         return error_state_model(params.replace(W=params.gps_vel_var))
     if mistake == "gps_interval_0_02":
         return error_state_model(params.replace(imu_rate=10 * params.imu_rate))
+    if mistake == "v0_zero":
+        return replace(m, x0=m.x0 + np.array([0.0, 0.0 - params.v0_mean, 0.0]))
     return m
 
 

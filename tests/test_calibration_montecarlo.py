@@ -63,3 +63,67 @@ def test_outage_monte_carlo_runs_and_passes():
 def test_chi2_bounds_match_spec_examples():
     np.testing.assert_allclose(chi2_bounds(6, 50), (5.078, 6.997), atol=1e-3)
     np.testing.assert_allclose(chi2_bounds(5, 50), (4.162, 5.914), atol=1e-3)
+
+
+# --- between fixes: the 200 Hz error against the filter's predicted P -------------------------
+
+@pytest.mark.parametrize("seed", [21, 22])
+def test_between_fixes_correct_filter_passes(seed):
+    mc = run_monte_carlo(n_runs=400, seed=seed, between_fixes=True)
+    c = mc.between_fixes_check()
+    assert c.passed, c.worst
+    assert c.statistic.size == 3 * (mc.params.n_imu - mc.params.n_gps)
+    assert 0.8 < c.inside_fraction <= 1.0
+    # the seven checks at the fixes do not change when the 200 Hz sums are added
+    plain = run_monte_carlo(n_runs=400, seed=seed)
+    for name in CHECK_NAMES:
+        assert mc.checks()[name].worst == plain.checks()[name].worst
+
+
+def test_between_fixes_equals_the_direct_statistics_and_filterpy():
+    from kfcal_helpers.calibration import batch_filter, run_filterpy, simulate
+
+    n = 12
+    mc = run_monte_carlo(n_runs=n, seed=31, between_fixes=True)
+    sim = simulate(mc.params, n, np.random.default_rng(31))
+    x = np.stack([run_filterpy(mc.params, sim.dz[l]).x for l in range(n)])  # filterpy at 200 Hz
+    e = sim.dx - x
+    np.testing.assert_allclose(mc.between.e_mean, e.mean(0), rtol=1e-9, atol=1e-12)
+    cov = np.einsum("nja,njb->jab", e - e.mean(0), e - e.mean(0)) / (n - 1)
+    np.testing.assert_allclose(mc.between.e_cov, cov, rtol=1e-7, atol=1e-15)
+    np.testing.assert_allclose(mc.between.P, batch_filter(mc.params, sim.dz[:1]).P, rtol=1e-12)
+    fp = run_monte_carlo(n_runs=n, seed=31, engine="filterpy", between_fixes=True)
+    np.testing.assert_allclose(fp.between.e_cov, mc.between.e_cov, rtol=1e-7, atol=1e-15)
+
+
+def test_between_fixes_memory_does_not_grow_with_n():
+    small = run_monte_carlo(n_runs=3, seed=1, between_fixes=True)
+    big = run_monte_carlo(n_runs=700, seed=1, between_fixes=True)  # two chunks
+    for name in ("e_mean", "e_cov", "P"):
+        assert getattr(small.between, name).shape == getattr(big.between, name).shape
+
+
+def test_between_fixes_catches_a_filter_that_holds_P():
+    from kfcal_helpers.mistakes import mistaken_model
+
+    p = CalibrationParams()
+    mc = run_monte_carlo(p, n_runs=300, seed=4, between_fixes=True, model=mistaken_model(p, "no_propagation"))
+    assert not mc.between_fixes_check().passed
+
+
+def test_between_fixes_argument():
+    with pytest.raises(ValueError, match="between_fixes"):
+        run_monte_carlo(n_runs=2, between_fixes="yes")
+    with pytest.raises(ValueError, match="between_fixes"):
+        run_monte_carlo(n_runs=2).between_fixes_check()
+
+
+def test_cli_json_has_the_between_fixes_check(capsys):
+    import json
+
+    from kfcal_helpers.cli import main
+
+    assert main(["calibrate", "--runs", "60", "--seed", "2", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    c = d["checks"]["between_fixes"]
+    assert c["passed"] is True and 0.0 <= c["inside_fraction"] <= 1.0 and c["worst"] <= 1.0

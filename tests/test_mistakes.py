@@ -10,8 +10,8 @@ from kfcal_helpers.calibration import CHECK_NAMES, CalibrationParams, error_stat
 from kfcal_helpers.coop import (CoopParams, generate_log, measure, measurement_residual, nominal_trajectory,
                                 run_filter)
 from kfcal_helpers.exercises import check_failing_checks_gps_sigma, check_phi02_coupling_change
-from kfcal_helpers.mistakes import (CALIBRATION_MISTAKES, COOP_MISTAKES, MISTAKES, coop_case, format_mistake_table,
-                                    mistake_table, mistaken_model)
+from kfcal_helpers.mistakes import (CALIBRATION_MISTAKES, COOP_MISTAKES, MISTAKES, calibration_row, coop_case,
+                                    format_mistake_table, mistake_table, mistaken_model)
 
 ALL_BUT_MEAN = set(CHECK_NAMES) - {"mean_error"}
 COOP_ALL = {"mean_error", "nees", "nis"}
@@ -24,6 +24,7 @@ CAUGHT_BY = {
     "m0_swapped": ALL_BUT_MEAN,
     "w_is_gps_velocity_var": {"covariance", "nees"},
     "gps_interval_0_02": ALL_BUT_MEAN,
+    "v0_zero": {"mean_error", "residual_independence", "residual_variance", "nees", "nis"},
     "ekf_correct": set(),
     "ekf_no_wrap": COOP_ALL,
     "lkf_correct": set(),
@@ -64,13 +65,24 @@ def test_variants_are_one_change_each():
     fields = ("Phi", "Q", "H", "V", "M0", "x0")
     changed = {k: {f for f in fields if not same(f, mistaken_model(P, k))} for k in CALIBRATION_MISTAKES}
     assert changed == {"correct": set(), "no_propagation": {"Phi", "Q"}, "phi02_sign": {"Phi"},
-                       "m0_swapped": {"M0"}, "w_is_gps_velocity_var": {"Q"}, "gps_interval_0_02": {"Phi", "Q"}}
+                       "m0_swapped": {"M0"}, "w_is_gps_velocity_var": {"Q"}, "gps_interval_0_02": {"Phi", "Q"},
+                       "v0_zero": {"x0"}}
+    assert np.array_equal(mistaken_model(P, "v0_zero").x0, [0.0, -P.v0_mean, P.bias_mean])
     flipped = mistaken_model(P, "phi02_sign").Phi
     assert flipped[0, 2] == P.dt**2 / 2 and np.array_equal(np.delete(flipped.ravel(), 2), np.delete(m.Phi.ravel(), 2))
     assert np.allclose(np.diag(mistaken_model(P, "m0_swapped").M0), [P.v0_var, P.p0_var, P.bias_var])
     # 0.02 s between fixes: Phi over the 40 steps is that of 0.02 s
     phi_fix = np.linalg.matrix_power(mistaken_model(P, "gps_interval_0_02").Phi, P.steps_per_fix)
     assert np.isclose(phi_fix[1, 2], -0.02)
+
+
+@pytest.mark.parametrize("seed", [2, 3])
+def test_v0_zero_fails_the_mean_error_check_on_other_seeds(seed):
+    """The only listed mistake the mean-error check catches: a wrong prior mean is a bias,
+    whatever the seed; the spread around it is right (covariance and orthogonality pass)."""
+    row = calibration_row("v0_zero", n_runs=400, seed=seed)
+    assert "mean_error" in row.failed and row.checks["mean_error"].worst > 5
+    assert row.checks["covariance"].passed and row.checks["orthogonality"].passed
 
 
 def test_phi02_sign_is_caught_by_the_model_identity():

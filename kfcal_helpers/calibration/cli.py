@@ -62,6 +62,9 @@ def result_to_dict(mc, outages=()) -> dict:
         if name in ("nees", "nis"):
             entry["bounds"] = list(mc.nees_bounds if name == "nees" else mc.nis_bounds)
         out["checks"][name] = entry
+    if mc.between is not None:  # the 200 Hz error between fixes, a further check
+        c = mc.between_fixes_check()
+        out["checks"]["between_fixes"] = {"inside_fraction": c.inside_fraction, "worst": c.worst, "passed": c.passed}
     return out
 
 
@@ -120,7 +123,8 @@ def run(args) -> int:
     windows = [parse_outage(text, "--outage") for text in args.outage]
     missing = outage_mask(params, windows, name="--outage") if windows else None
     mc = run_monte_carlo(params, n_runs=args.runs, seed=args.seed, engine=args.engine,
-                         truth=args.truth, progress=None, missing_fixes=missing)
+                         truth=args.truth, progress=None, missing_fixes=missing,
+                         between_fixes=bool(args.json))
     written = write_figures(mc, args.figures, seed=args.seed) if args.figures else []
     if args.json:
         d = result_to_dict(mc, windows)

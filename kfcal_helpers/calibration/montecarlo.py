@@ -1,4 +1,4 @@
-"""Monte Carlo validation of the calibration filter (the SPEC's six checks).
+"""Monte Carlo validation of the calibration filter (six checks at the GPS fixes, and one between them).
 
 Realizations are simulated in chunks of :data:`CHUNK_SIZE` (the 200 Hz arrays of a
 chunk are dropped once the chunk is filtered), and only sums over realizations
@@ -25,6 +25,14 @@ The checks, each judged against its own sampling band at significance
 ``inside_fraction`` is the share of entries (fix x component, or pair x component
 for check 4, fix for NEES and NIS) inside the band; about ``1 - alpha`` for a
 consistent filter.
+
+Between fixes (``run_monte_carlo(..., between_fixes=True)``): the error at every
+200 Hz sample, ``e(t_j) = dx(t_j) - dx_hat(t_j)`` with the predicted estimate
+``dx_hat(t_i + k dt) = Phi^k dx_hat_post(t_i)``, is summed over realizations as well
+(memory independent of N), and :meth:`MonteCarloResult.between_fixes_check` compares
+its ensemble variance at every sample with the filter's ``P_kk(t_j)`` against the
+chi-square interval ``P_kk chi2_{N-1}(level/2, 1-level/2)/(N-1)`` (its own family of
+entries: the seven checks above are not changed by it).
 """
 
 from __future__ import annotations
@@ -39,12 +47,12 @@ from ..consistency import Check, chi2_bounds
 from ..progress import progress as _progress
 from ..validation import require_choice, require_finite, require_int
 from .error_model import ErrorStateModel
-from .filters import batch_filter, covariance_sequence, run_filterpy
+from .filters import batch_filter, between_fixes as _between_fix_steps, covariance_sequence, run_filterpy
 from .params import CalibrationParams
 from .simulation import TRUTH_MODELS, simulate
 
-__all__ = ["CHUNK_SIZE", "ENGINES", "CHECK_NAMES", "Check", "MonteCarloResult", "run_monte_carlo",
-           "format_checks"]
+__all__ = ["CHUNK_SIZE", "ENGINES", "CHECK_NAMES", "Check", "MonteCarloResult", "BetweenFixes",
+           "run_monte_carlo", "format_checks"]
 
 CHUNK_SIZE = 500  #: realizations simulated together (fixed, so results do not depend on the machine)
 ENGINES = ("batch", "filterpy")
@@ -84,6 +92,7 @@ class MonteCarloResult:
     residual_moment: np.ndarray
     nees: np.ndarray
     nis: np.ndarray
+    between: "BetweenFixes | None" = None
 
     @property
     def sigma_final(self) -> np.ndarray:
@@ -171,6 +180,86 @@ class MonteCarloResult:
             out[name] = Check(name, _DESCRIPTIONS[name], stat, expected, lo, hi, slo, shi)
         return out
 
+    def between_fixes_check(self) -> Check:
+        """The 200 Hz check between fixes (needs ``run_monte_carlo(..., between_fixes=True)``).
+
+        Entries: every IMU sample that is not a fix x the three components; statistic the
+        ensemble variance of the error, expected the filter's ``P_kk(t_j)``; pointwise band
+        ``P_kk chi2_{N-1}(alpha/2, 1 - alpha/2)/(N-1)``, simultaneous band the same at
+        ``alpha / entries`` (a family of its own).
+        """
+        if self.between is None:
+            raise ValueError("between_fixes_check needs run_monte_carlo(..., between_fixes=True)")
+        b = self.between
+        off = np.ones(self.params.n_imu, bool)
+        off[self.params.fix_indices] = False
+        var = np.einsum("jaa->ja", b.e_cov)[off]
+        Pkk = np.einsum("jaa->ja", b.P)[off]
+        N = self.n_runs
+
+        def band(level):
+            return (Pkk * stats.chi2.ppf(level / 2, N - 1) / (N - 1),
+                    Pkk * stats.chi2.ppf(1 - level / 2, N - 1) / (N - 1))
+
+        lo, hi = band(self.alpha)
+        slo, shi = band(self.alpha / var.size)
+        return Check("between_fixes", _BETWEEN_DESCRIPTION, var, Pkk, lo, hi, slo, shi)
+
+
+@dataclass
+class BetweenFixes:
+    """Ensemble statistics of the error at every IMU sample (n_imu = 6001 for the defaults).
+
+    t (n_imu,) s; P (n_imu, 3, 3) the filter's covariance (a posteriori at fixes, predicted
+    between them); e_mean (n_imu, 3), e_cov (n_imu, 3, 3) ensemble mean and covariance
+    (1/(N-1)) of ``e = dx - dx_hat``.
+    """
+
+    t: np.ndarray
+    P: np.ndarray
+    e_mean: np.ndarray
+    e_cov: np.ndarray
+
+
+_BETWEEN_DESCRIPTION = "ensemble variance of the 200 Hz error between fixes vs the filter's P"
+
+
+class _BetweenSums:
+    """Running sums of the 200 Hz error over realizations: O(n_imu) memory, whatever N."""
+
+    def __init__(self, params: CalibrationParams, between_fixes):
+        if not isinstance(between_fixes, (bool, np.bool_)):
+            raise ValueError(f"between_fixes must be True or False, got {between_fixes!r}")
+        self.params = params
+        self.n = 0
+        self.e = np.zeros((params.n_imu, 3))
+        self.ee = np.zeros((params.n_imu, 3, 3))
+
+    @staticmethod
+    def true_errors(sim) -> np.ndarray:
+        """The true error state at every sample, (n, n_imu, 3)."""
+        return sim.dx
+
+    def add(self, dx_full, x_full):
+        e = dx_full - x_full
+        self.n += len(e)
+        self.e += e.sum(0)
+        self.ee += np.einsum("nja,njb->jab", e, e)
+
+    def result(self, P: np.ndarray) -> BetweenFixes:
+        N = self.n
+        mean = self.e / N
+        cov = (self.ee - N * np.einsum("ja,jb->jab", mean, mean)) / (N - 1)
+        return BetweenFixes(self.params.t_imu, P, mean, cov)
+
+
+def _predicted_between(params: CalibrationParams, x_post: np.ndarray, model) -> np.ndarray:
+    """The batch estimate at every sample, ``Phi^k x_post(t_i)`` (n, n_imu, 3)."""
+    powers, _ = _between_fix_steps(params, model)
+    r = params.steps_per_fix
+    n = x_post.shape[0]
+    return np.einsum("kab,nib->nika", powers[:r], x_post).reshape(n, -1, 3)[:, : params.n_imu]
+
 
 _DESCRIPTIONS = {
     "mean_error": "ensemble mean of the error vs 0 (+-t s/sqrt(N))",
@@ -219,12 +308,12 @@ class _Sums:
 def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000, seed=0,
                     engine: str = "batch", truth: str = "euler", alpha: float = 0.05,
                     missing_fixes=None, progress: bool | None = False,
-                    model: ErrorStateModel | None = None) -> MonteCarloResult:
+                    model: ErrorStateModel | None = None, between_fixes: bool = False) -> MonteCarloResult:
     """Simulate ``n_runs`` realizations, filter them, and accumulate the check statistics.
 
     Parameters
     ----------
-    params : CalibrationParams (default: the SPEC's)
+    params : CalibrationParams (default: ``CalibrationParams()``)
     n_runs : int >= 2
     seed : int or None, seed of ``numpy.random.default_rng``
     engine : "batch" (vectorised, shared gains) or "filterpy" (one KalmanFilter per run)
@@ -234,6 +323,8 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
     progress : show a progress bar over chunks (None: unless CI/KFCAL_QUIET is set)
     model : optional ErrorStateModel the filter assumes (default: the true one); the
         truth is always simulated with ``params``
+    between_fixes : also accumulate the error at every 200 Hz sample (``result.between``,
+        checked by ``result.between_fixes_check()``); memory O(n_imu), independent of N
 
     Returns
     -------
@@ -255,6 +346,7 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
     cov = covariance_sequence(params, missing, model)
+    bsums = _BetweenSums(params, between_fixes) if between_fixes is not False else None
     P, P_prior, S, K = cov
     P_post = P[params.fix_indices]
     P_post_inv = np.linalg.inv(P_post)
@@ -264,6 +356,7 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
     for size in _progress(sizes, total=len(sizes), desc=f"Monte Carlo ({engine})", enabled=progress):
         sim = simulate(params, size, rng, truth=truth, missing_fixes=missing if missing.any() else None)
         dx, dz = sim.dx_at_fixes, sim.dz
+        dx_full = bsums.true_errors(sim) if bsums is not None else None
         del sim
         if engine == "batch":
             res = batch_filter(params, dz, full_rate=False, covariances=cov, model=model)
@@ -274,6 +367,11 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
             x_post = np.stack([r.x_post for r in runs])
             residual = np.stack([r.residual for r in runs])
         sums.add(dx, x_prior, x_post, residual, P_post_inv, S_inv)
+        if bsums is not None:
+            x_full = (_predicted_between(params, x_post, model) if engine == "batch"
+                      else np.stack([run.x for run in runs]))
+            bsums.add(dx_full, x_full)
+            del dx_full, x_full
 
     N = sums.n
     e_mean = sums.e / N
@@ -289,7 +387,8 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
         t_gps=params.t_gps, missing=missing, P_prior=P_prior, P_post=P_post, S=S,
         e_mean=e_mean, e_cov=e_cov, e_prior_mean=eb_mean, e_prior_cov=eb_cov,
         orthogonality=orth, xhat_sq_mean=sums.xx / N,
-        residual_moment=(sums.rr / N).reshape(n_gps, 2, n_gps, 2), nees=sums.nees / N, nis=nis)
+        residual_moment=(sums.rr / N).reshape(n_gps, 2, n_gps, 2), nees=sums.nees / N, nis=nis,
+        between=bsums.result(cov[0]) if bsums is not None else None)
     result.checks()  # the statistics are part of the timed work
     result.seconds = time.perf_counter() - start
     return result
@@ -299,7 +398,10 @@ def format_checks(result: MonteCarloResult) -> str:
     """A fixed-precision text table of the checks (for notebooks and the CLI)."""
     lines = [f"{'check':<22} {'inside':>7} {'worst':>7}  verdict",
              f"{'-' * 22} {'-' * 7} {'-' * 7}  -------"]
-    for name, c in result.checks().items():
+    checks = dict(result.checks())
+    if result.between is not None:
+        checks["between_fixes"] = result.between_fixes_check()
+    for name, c in checks.items():
         verdict = "pass" if c.passed else "FAIL"
         lines.append(f"{name:<22} {c.inside_fraction:7.3f} {c.worst:7.2f}  {verdict}")
     return "\n".join(lines)
