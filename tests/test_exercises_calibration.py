@@ -195,7 +195,8 @@ def cases():
     out["06.3"] = (ex.check_simultaneous_nees_band, two_sided(3000, 1000, lvl),
                    [("pointwise", two_sided(3000, 1000)), ("fixes_only", two_sided(3000, 1000, 0.05 / 151)),
                     ("checks_only", two_sided(3000, 1000, 0.05 / 7)), ("one_sided", two_sided(3000, 1000, 2 * lvl)),
-                    ("dim2", two_sided(2000, 1000, lvl))], [])
+                    ("dim2", two_sided(2000, 1000, lvl)), ("sum", two_sided(3000, 1, lvl)),
+                    ("dof3", two_sided(3, 1, lvl))], [])
     # 07.1 --------------------------------------------------------------------------------
     w = 2 * np.pi * 0.1
     t = np.linspace(0, 30, 300001)

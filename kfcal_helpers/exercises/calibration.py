@@ -187,11 +187,13 @@ HINTS: dict[str, dict[str, str]] = {
         "one_sided": "a two-sided 95 % band uses the 97.5 % normal quantile (1.96)",
     },
     "06.3": {
-        "pointwise": "that is the pointwise band: the simultaneous one splits α over all entries of all checks",
-        "fixes_only": "α is split over the entries of ALL seven checks (Bonferroni), not only over the fixes",
-        "checks_only": "α is also split over the 151 fixes of the NEES check",
+        "pointwise": "that is the pointwise band: the simultaneous one gives each check α/7, then splits that over the check's entries",
+        "fixes_only": "α is first split over the seven checks (α/7 each), then over the 151 fixes of the NEES check",
+        "checks_only": "α/7 is the NEES check's share; it is then split over its 151 fixes",
         "one_sided": "each entry's two-sided band puts half of its share of α in each tail",
         "dim2": "the NEES is a quadratic form in the 3-dimensional error: χ² with 3N degrees of freedom",
+        "sum": "these bound the SUM of the N NEES values; the check uses their run average: divide by N",
+        "dof3": "one NEES has 3 degrees of freedom, but the sum of N independent ones has 3N: use χ²_{3N}, then divide by N",
     },
     "07.1": {
         "velocity": "that is the velocity mismatch itself; the apparent bias is its rate of change",
@@ -265,7 +267,7 @@ GENERIC = {
     "06.1": "the NIS summed over N runs is χ² with (residual dimension × N) degrees of freedom: take the two-sided "
             "quantiles, then average",
     "06.2": "tanh(atanh ρ ± z_{0.975}/√(N - 3))",
-    "06.3": "the per-entry significance is α / (entries × checks); then the usual χ²_{3N}/N band",
+    "06.3": "the per-entry significance is (α/7)/151 (α/7 per check, shared by its 151 fixes); then the usual χ²_{3N}/N band",
     "07.1": "the apparent bias is the rate of change of the velocity mismatch (Δt/2)(a(t) - a(0))",
     "07.2": "v[0] = v0 and v[j+1] = v[j] + (Δt/2)(a_c[j] + a_c[j+1])",
     "07.3": "run the Monte Carlo of the exercise and read the verdict column",
@@ -747,8 +749,8 @@ def check_fisher_band(answer, *, rho: float = 0.8, n_runs: int = 300, alpha: flo
 def check_simultaneous_nees_band(answer, *, n_runs: int = 1000, n_fixes: int = 151, n_checks: int = 7,
                                  alpha: float = 0.05) -> Feedback:
     """Exercise 06.3: the simultaneous (Bonferroni) band ``[lower, upper]`` of the run-averaged
-    NEES at each of ``n_fixes`` fixes, ``alpha`` split over all entries of ``n_checks`` checks
-    (as :meth:`MonteCarloResult.checks` does)."""
+    NEES at each of ``n_fixes`` fixes: ``alpha / n_checks`` per check, split equally over the
+    check's ``n_fixes`` entries (as :meth:`MonteCarloResult.checks` does)."""
     N = require_int("n_runs", n_runs, minimum=2)
     n_fixes = require_int("n_fixes", n_fixes, minimum=2)
     n_checks = require_int("n_checks", n_checks, minimum=2)
@@ -758,7 +760,10 @@ def check_simultaneous_nees_band(answer, *, n_runs: int = 1000, n_fixes: int = 1
     wrong = [("pointwise", chi2_average_bounds(3, N, alpha)), ("fixes_only", chi2_average_bounds(3, N, alpha / n_fixes)),
              ("checks_only", chi2_average_bounds(3, N, alpha / n_checks)),
              ("one_sided", chi2_average_bounds(3, N, level, one_sided=True)),
-             ("dim2", chi2_average_bounds(2, N, level))]
+             ("dim2", chi2_average_bounds(2, N, level)),
+             ("sum", chi2_average_bounds(3, N, level, divide_by=1)),
+             ("dof3", chi2_average_bounds(3, N, level, dof=3, divide_by=1)),
+             ("dof3", chi2_average_bounds(3, N, level, dof=3))]
     return _numeric("06.3", answer, right, wrong)
 
 
