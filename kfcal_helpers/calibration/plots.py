@@ -25,7 +25,7 @@ __all__ = ["CHECK_PANELS", "outage_spans", "shade_outages", "plot_estimate_error
 STATE_LABELS = ("position [m]", "velocity [m/s]", "bias [m/s²]")  #: y labels of the error panels
 _STATES = (("position", "m"), ("velocity", "m/s"), ("bias", "m/s²"))
 
-#: the panels of :func:`plot_check_panels`, in the order of the SPEC's checks
+#: the panels of :func:`plot_check_panels`, in the order of the checks (notebook 06)
 CHECK_PANELS = ("mean_error", "covariance", "orthogonality", "residual_independence", "nees", "nis")
 
 
@@ -128,14 +128,31 @@ def plot_covariance_sawtooth(params: CalibrationParams, result: FilterResult, t_
 
 # ---------------------------------------------------------------------------
 # Monte Carlo checks, one panel each
-def _normalized_band(ax, t, ratio, title, ylabel, labels=None, lw=0.6):
-    """Statistics divided by their band half-width, with the ±1 lines."""
+def _bands_lines(ax, point, simul, lw=0.7, symmetric=True):
+    """Pointwise (dashed) and simultaneous (solid) band lines at the given levels (arrays over time
+    or scalars); the simultaneous band is the one the verdict uses."""
+    for level, style, label in ((point, "--", "pointwise 95 % band"), (simul, "-", "simultaneous band (verdict)")):
+        for sign in ((1, -1) if symmetric else (1,)):
+            lines = ax.plot(*level(sign), color="k", ls=style, lw=_lw(lw))
+            if sign == 1:
+                lines[0].set_label(label)
+
+
+def _legend_on_top(ax, ncol=2):
+    """Room above the curves and bands for the legend, so it covers neither."""
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, hi + 0.45 * (hi - lo))
+    ax.legend(ncol=ncol, fontsize="small", loc="upper center")
+
+
+def _normalized_band(ax, t, ratio, sim, title, ylabel, labels=None, lw=0.6):
+    """Statistics divided by their pointwise band half-width, with the pointwise (±1) and the
+    simultaneous (±sim) lines."""
     lines = ax.plot(t, ratio, lw=_lw(lw))
     if labels:
         for line, name in zip(lines, labels):
             line.set_label(name)
-    _ = ax.axhline(1, color="k", ls="--", lw=_lw(0.6))
-    _ = ax.axhline(-1, color="k", ls="--", lw=_lw(0.6))
+    _bands_lines(ax, lambda s: (t, s * np.ones_like(t)), lambda s: (t, s * sim * np.ones_like(t)))
     ax.set_title(title)
     ax.set_ylabel(ylabel)
     ax.set_xlabel("time t [s]")
@@ -144,42 +161,56 @@ def _normalized_band(ax, t, ratio, title, ylabel, labels=None, lw=0.6):
 def _panel_mean_error(fig, ax, mc, checks):
     c = checks["mean_error"]
     n = len(mc.t_gps)
-    _normalized_band(ax, mc.t_gps, c.statistic.reshape(n, 3) / c.upper.reshape(n, 3),
-                     "1. mean error / its band half-width", "normalized [-]", ("δp", "δv", "b"))
-    ax.legend(ncol=3)
+    hi = c.upper.reshape(n, 3)
+    sim = float(np.nanmax(c.sim_upper.reshape(n, 3) / hi))  # the same ratio at every entry (t quantiles)
+    _normalized_band(ax, mc.t_gps, c.statistic.reshape(n, 3) / hi, sim,
+                     "1. mean error / pointwise half-width", "normalized [-]", ("δp", "δv", "b"))
+    _legend_on_top(ax, ncol=3)
 
 
 def _panel_covariance(fig, ax, mc, checks):
     c = checks["covariance"]
     n = len(mc.t_gps)
-    st, lo, hi, ex = (a.reshape(n, 6) for a in (c.statistic, c.lower, c.upper, c.expected))
+    st, lo, hi, ex, slo, shi = (a.reshape(n, 6) for a in (c.statistic, c.lower, c.upper, c.expected,
+                                                           c.sim_lower, c.sim_upper))
     for k, name in ((0, "p"), (3, "v"), (5, "b")):
         _ = ax.plot(mc.t_gps, st[:, k] / ex[:, k], lw=_lw(0.6), label=f"var {name}")
-    _ = ax.plot(mc.t_gps, lo[:, 0] / ex[:, 0], "k--", lw=_lw(0.6), label="χ² band")
-    _ = ax.plot(mc.t_gps, hi[:, 0] / ex[:, 0], "k--", lw=_lw(0.6))
+    t = mc.t_gps
+    _bands_lines(ax, lambda s: (t, (hi if s > 0 else lo)[:, 0] / ex[:, 0]),
+                 lambda s: (t, (shi if s > 0 else slo)[:, 0] / ex[:, 0]))
     ax.set_title("2. ensemble variance / P")
     ax.set_ylabel("ratio [-]")
     ax.set_xlabel("time t [s]")
-    ax.legend(ncol=2)
+    _legend_on_top(ax, ncol=3)
 
 
 def _panel_orthogonality(fig, ax, mc, checks):
     c = checks["orthogonality"]
     n = len(mc.t_gps)
-    st, hi = c.statistic.reshape(n, 9), c.upper.reshape(n, 9)
+    st, hi, shi = c.statistic.reshape(n, 9), c.upper.reshape(n, 9), c.sim_upper.reshape(n, 9)
     with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.where(hi > 0, st / hi, 0.0)
-    _normalized_band(ax, mc.t_gps, ratio, "3. E[e x̂ᵀ] / band (9 entries)", "normalized [-]",
-                     lw=0.4)
+        ratio = np.where(hi > 0, np.abs(st) / hi, 0.0)
+        sim = float(np.nanmax(np.where(hi > 0, shi / hi, np.nan)))
+    t = mc.t_gps
+    _ = ax.plot(t, ratio.max(axis=1), lw=_lw(0.6), color="C0", label="largest of the 9 entries (k, m)")
+    _bands_lines(ax, lambda s: (t, np.ones_like(t)), lambda s: (t, sim * np.ones_like(t)), symmetric=False)
+    ax.set_ylim(bottom=0)
+    ax.set_title("3. |(1/N) Σ (e_k − ē_k) x̂_m| / pointwise half-width")
+    ax.set_ylabel("normalized [-]")
+    ax.set_xlabel("time t [s]")
+    _legend_on_top(ax, ncol=2)
 
 
 def _panel_residual_independence(fig, ax, mc, checks):
     t = mc.t_gps
     rho = mc.residual_correlation()
-    im = ax.imshow(np.abs(rho - np.diag(np.diag(rho))) * np.sqrt(mc.n_runs), vmin=0, vmax=3,
-                   cmap="viridis", extent=(0, t[-1], t[-1], 0))
-    fig.colorbar(im, ax=ax, label="|correlation| · √N")
-    ax.set_title("4. residual correlations")
+    c = checks["residual_independence"]
+    half = float(c.sim_upper[0])  # the same simultaneous half-width for every pair
+    cmap = mpl.colormaps["viridis"].with_extremes(over="red")
+    im = ax.imshow(np.abs(rho - np.diag(np.diag(rho))) / half, vmin=0, vmax=1, cmap=cmap,
+                   extent=(0, t[-1], t[-1], 0))
+    fig.colorbar(im, ax=ax, extend="max", label="|ρ| / simultaneous band (red: outside)")
+    ax.set_title("4. residual correlations, all pairs of fixes")
     ax.set_xlabel("fix time [s]")
     ax.set_ylabel("fix time [s]")
     ax.grid(False)
@@ -190,13 +221,14 @@ def _panel_chi2(ax, mc, checks, name):
     dim = 3 if name == "nees" else 2
     stat = np.full(len(mc.t_gps), np.nan)  # NIS: a gap (no line) at missing fixes
     stat[slice(None) if name == "nees" else ~mc.missing] = c.statistic
-    _ = ax.plot(mc.t_gps, stat, lw=_lw(0.6), label=f"run-averaged {name.upper()}")
-    _ = ax.axhline(c.lower[0], color="k", ls="--", lw=_lw(0.6), label=f"χ² bounds, α = {mc.alpha:g}")
-    _ = ax.axhline(c.upper[0], color="k", ls="--", lw=_lw(0.6))
+    t = mc.t_gps
+    _ = ax.plot(t, stat, lw=_lw(0.6), label=f"run-averaged {name.upper()}")
+    _bands_lines(ax, lambda s: (t, np.full_like(t, c.upper[0] if s > 0 else c.lower[0])),
+                 lambda s: (t, np.full_like(t, c.sim_upper[0] if s > 0 else c.sim_lower[0])))
     ax.set_title(f"{'5. NEES' if name == 'nees' else '6. NIS'} (expected {dim})")
     ax.set_xlabel("time t [s]")
     ax.set_ylabel(f"mean {name.upper()} [-]")
-    ax.legend()
+    _legend_on_top(ax, ncol=2)
 
 
 _PANELS = {
@@ -211,7 +243,8 @@ _PANELS = {
 
 def plot_check_panels(mc: MonteCarloResult, panels=CHECK_PANELS, ncols: int = 2, figsize=None,
                       title: str | None = None):
-    """Some of the Monte Carlo checks at the fixes, each against its pointwise band.
+    """Some of the Monte Carlo checks at the fixes, each against its pointwise band (dashed) and
+    the simultaneous band of the verdict (solid; panel 4: colour scale up to it, red beyond).
 
     panels : names from :data:`CHECK_PANELS`; ncols : panels per row;
     figsize : inches (default 5.5 per column x 3 per row); title : default names N.
@@ -238,7 +271,8 @@ def plot_check_panels(mc: MonteCarloResult, panels=CHECK_PANELS, ncols: int = 2,
 
 
 def plot_checks(mc: MonteCarloResult, figsize=None):
-    """The six Monte Carlo checks at the fixes, each against its pointwise band (default 11 x 9 in)."""
+    """The six Monte Carlo checks at the fixes, each against its pointwise and simultaneous bands
+    (default 11 x 9 in)."""
     return plot_check_panels(mc, CHECK_PANELS, ncols=2, figsize=figsize or (11, 9))
 
 
