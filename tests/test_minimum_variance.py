@@ -78,3 +78,23 @@ def test_rts_rejects_bad_shapes():
     P = np.eye(3)[None].repeat(PARAMS.n_gps, 0)
     with pytest.raises(ValueError, match="x_post"):
         rts_smooth_fixes(PARAMS, np.zeros((5, 3)), np.zeros((5, 3)), P, P)
+
+
+@pytest.mark.parametrize("bias_mean", [0.0, 0.05])
+def test_conditional_mean_is_the_filter_estimate(bias_mean):
+    """E[x(t_i) | dz_0..dz_i] from one conditioning equals filterpy's a posteriori estimate,
+    also with a non-zero prior mean (the prior means are propagated by Phi)."""
+    from kfcal_helpers.calibration import batch_conditioning, run_filterpy, simulate
+
+    p = CalibrationParams(bias_mean=bias_mean)
+    sim = simulate(p, 2, np.random.default_rng(3))
+    fr = run_filterpy(p, sim.dz[0])
+    for i in (0, 1, 12, 60):
+        mean, P = batch_conditioning(p, i, sim.dz[0])
+        both, _ = batch_conditioning(p, i, sim.dz)
+        np.testing.assert_allclose(mean, fr.x_post[i], rtol=1e-9, atol=1e-11)
+        np.testing.assert_allclose(both[0], mean, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(P, fr.P_post[i], rtol=1e-8, atol=1e-15)
+    assert batch_conditioning(p, 5)[0] is None
+    with pytest.raises(ValueError, match="dz"):
+        batch_conditioning(p, 5, np.zeros((3, 2)))

@@ -1,4 +1,4 @@
-"""Accelerometer bias calibration with GPS (SPEC-calibration).
+"""Accelerometer bias calibration with GPS.
 
 A 1-D vehicle with ``a(t) = A sin(omega t)``; a 200 Hz IMU with bias and white
 noise; 5 Hz GPS position and velocity.  A Kalman filter on the error state
@@ -6,7 +6,7 @@ noise; 5 Hz GPS position and velocity.  A Kalman filter on the error state
 
 Modules: :mod:`.params` (the problem's parameters), :mod:`.simulation` (truth,
 IMU, GPS), :mod:`.error_model` (Phi, Gamma, H, Q, V, M0), :mod:`.filters`
-(filterpy wrapper and the batch path), :mod:`.montecarlo` (the six checks),
+(filterpy wrapper and the batch path), :mod:`.montecarlo` (the Monte Carlo checks),
 and the command line in :mod:`.cli`.
 """
 
@@ -15,7 +15,8 @@ from .filters import FilterResult, batch_filter, between_fixes, covariance_seque
 from .montecarlo import CHECK_NAMES, ENGINES, Check, MonteCarloResult, format_checks, run_monte_carlo
 from .params import CalibrationParams
 from .outages import outage_mask, parse_outage
-from .batch_estimate import batch_conditioning_covariance, prior_covariances_at_fixes, rts_smooth_fixes
+from .batch_estimate import (batch_conditioning, batch_conditioning_covariance, prior_covariances_at_fixes,
+                             rts_smooth_fixes)
 from .simulation import TRUTH_MODELS, Simulation, acceleration, analytic_truth, integrate_left, simulate
 
 __all__ = [
@@ -23,6 +24,6 @@ __all__ = [
     "TRUTH_MODELS", "ErrorStateModel", "error_state_model", "phi_power", "FilterResult",
     "make_kalman_filter", "run_filterpy", "between_fixes", "covariance_sequence", "batch_filter", "Check",
     "MonteCarloResult", "run_monte_carlo", "format_checks", "CHECK_NAMES", "ENGINES",
-    "outage_mask", "parse_outage", "batch_conditioning_covariance", "prior_covariances_at_fixes",
+    "outage_mask", "parse_outage", "batch_conditioning", "batch_conditioning_covariance", "prior_covariances_at_fixes",
     "rts_smooth_fixes",
 ]

@@ -13,7 +13,9 @@ whose covariances are (no filter recursion; the noise sum in closed form)
     Cov(x(t_n), x(t_m)) = Phi^{k_n - k_m} Pi_m                      (n >= m)
 
 and conditions ``x(t_i)`` on all ``dz_0..dz_i`` at once:
-``P = Sigma_xx - Sigma_xz Sigma_zz^{-1} Sigma_zx``.
+``P = Sigma_xx - Sigma_xz Sigma_zz^{-1} Sigma_zx``.  :func:`batch_conditioning` also gives
+the conditional mean ``E[x(t_i) | dz] = mu_i + Sigma_xz Sigma_zz^{-1} (dz - H mu)`` of one
+realization's data, with the prior means ``mu_m = Phi^{k_m} x0``.
 
 :func:`rts_smooth_fixes` is the fix-to-fix RTS smoother for many realizations
 at once (the gains do not depend on the data).
@@ -29,7 +31,7 @@ from .error_model import ErrorStateModel
 from .filters import _matrix_powers, _model
 from .params import CalibrationParams
 
-__all__ = ["prior_covariances_at_fixes", "batch_conditioning_covariance", "rts_smooth_fixes"]
+__all__ = ["prior_covariances_at_fixes", "batch_conditioning_covariance", "batch_conditioning", "rts_smooth_fixes"]
 
 
 def prior_covariances_at_fixes(params: CalibrationParams, model: ErrorStateModel | None = None) -> np.ndarray:
@@ -65,6 +67,29 @@ def batch_conditioning_covariance(params: CalibrationParams, i: int, model: Erro
     of size ``2(i+1)``, solved by Cholesky (``scipy.linalg.cho_factor``/``cho_solve``).
     Equal to the Kalman filter's a posteriori P at fix ``i`` (every fix present).
     """
+    _, P = batch_conditioning(params, i, None, model, Pi)
+    return P
+
+
+def batch_conditioning(params: CalibrationParams, i: int, dz=None, model: ErrorStateModel | None = None,
+                       Pi: np.ndarray | None = None):
+    """Mean and covariance of ``x(t_i)`` given the fixes ``dz_0..dz_i``, by one Gaussian conditioning.
+
+    Parameters
+    ----------
+    params : CalibrationParams
+    i : int, fix index, 0 <= i < n_gps
+    dz : optional array (n_gps, 2) or (n, n_gps, 2), the error-state measurements (m, m/s) of one
+        or many realizations (only rows 0..i are used; every fix present); None: covariance only
+    model : optional ErrorStateModel (default: ``error_state_model(params)``)
+    Pi : optional output of :func:`prior_covariances_at_fixes` to reuse
+
+    Returns
+    -------
+    mean : (3,) or (n, 3) ``mu_i + Sigma_xz Sigma_zz^{-1} (dz - H mu)`` (None without ``dz``),
+        equal to the Kalman filter's a posteriori estimate at fix ``i``
+    P : (3, 3) ``Sigma_xx - Sigma_xz Sigma_zz^{-1} Sigma_zx``, the filter's a posteriori P
+    """
     m = _model(params, model)
     i = require_int("i", i, minimum=0)
     if i >= params.n_gps:
@@ -76,8 +101,8 @@ def batch_conditioning_covariance(params: CalibrationParams, i: int, model: Erro
     n = i + 1
     lag = np.arange(n)[:, None] - np.arange(n)[None, :]  # n - m
     # C[a, b] = Cov(x(t_a), x(t_b)) = Phi^{(a-b) r} Pi_b for a >= b
-    F = _matrix_powers(np.linalg.matrix_power(m.Phi, r), int(np.abs(lag).max()) + 1)[np.abs(lag)]  # (n, n, 3, 3)
-    C = F @ Pi[:n][None, :, :, :]
+    F = _matrix_powers(np.linalg.matrix_power(m.Phi, r), int(np.abs(lag).max()) + 1)  # (Phi^r)^k
+    C = F[np.abs(lag)] @ Pi[:n][None, :, :, :]
     lower = lag >= 0
     C = np.where(lower[:, :, None, None], C, np.swapaxes(C, 0, 1).swapaxes(2, 3))
     Szz = (H @ C @ H.T).transpose(0, 2, 1, 3).reshape(2 * n, 2 * n)
@@ -85,7 +110,16 @@ def batch_conditioning_covariance(params: CalibrationParams, i: int, model: Erro
     Sxz = (C[i] @ H.T).transpose(1, 0, 2).reshape(3, 2 * n)  # Cov(x_i, z_b) = C[i, b] H^T
     factor = scipy.linalg.cho_factor(Szz, lower=True)
     P = Pi[i] - Sxz @ scipy.linalg.cho_solve(factor, Sxz.T)
-    return (P + P.T) / 2
+    mean = None
+    if dz is not None:
+        dz = np.asarray(dz, float)
+        if dz.shape[-2:] != (params.n_gps, 2) or dz.ndim not in (2, 3) or not np.all(np.isfinite(dz[..., :n, :])):
+            raise ValueError(f"dz must be a finite array of shape ({params.n_gps}, 2) or (n, {params.n_gps}, 2), "
+                             f"got {dz.shape}")
+        mu = F[:n] @ m.x0                                   # prior means at fixes 0..i, (n, 3)
+        innov = (dz[..., :n, :] - mu @ H.T).reshape(*dz.shape[:-2], 2 * n)
+        mean = mu[i] + scipy.linalg.cho_solve(factor, innov.T).T @ Sxz.T
+    return mean, (P + P.T) / 2
 
 
 def rts_smooth_fixes(params: CalibrationParams, x_prior, x_post, P_prior, P_post,
