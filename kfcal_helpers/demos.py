@@ -284,7 +284,7 @@ def compute_calibration_demo(gps_rate: float = 5.0, W: float = 0.0004, gps_pos_v
     n_runs : realizations in the ensemble, >= 2
     seed : int >= 0; the same seed gives the same noise draws (common random numbers, so a
         slider move changes the parameters, not the luck)
-    base : the other parameters (default: the SPEC's ``CalibrationParams()``)
+    base : the other parameters (default: ``CalibrationParams()``, the course problem's)
     ensemble : "fixes" (default: the ensemble's noises drawn at the fixes only,
         :func:`sample_noise_at_fixes`) or "simulate" (the full 200 Hz simulation, slower)
     alpha : significance level of the ensemble band, in (0, 1)
@@ -578,7 +578,7 @@ def figure_png(fig) -> bytes:
 
 
 def calibration_controls() -> dict:
-    """The calibration demo's controls (ipywidgets), by name, at the SPEC's defaults.
+    """The calibration demo's controls (ipywidgets), by name, at the default parameters.
 
     ``gps_rate`` (Hz, a selection slider of the rates that divide 200 Hz), ``W``
     ((m/s²)², log scale), ``gps_pos_sigma`` (m, log scale), ``bias_sigma`` (prior σ of the

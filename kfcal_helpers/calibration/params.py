@@ -1,4 +1,4 @@
-"""Parameters of the accelerometer-calibration problem (SPEC-calibration)."""
+"""Parameters of the accelerometer-calibration problem."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ class CalibrationParams:
     Units: accelerations m/s^2, velocities m/s, positions m, rates Hz,
     times s, angular frequency rad/s, variances in the squared units.
 
-    The defaults are the SPEC's: 200 Hz IMU, 5 Hz GPS, 30 s, ``a(t) = 10 sin(0.2 t)``.
+    The defaults are the course problem's: 200 Hz IMU, 5 Hz GPS, 30 s, ``a(t) = 10 sin(0.2 t)``.
     """
 
     A: float = 10.0  #: acceleration amplitude, m/s^2
