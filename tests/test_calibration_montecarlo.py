@@ -97,8 +97,10 @@ def test_between_fixes_equals_the_direct_statistics_and_filterpy():
 
 
 def test_between_fixes_memory_does_not_grow_with_n():
+    from kfcal_helpers.calibration.montecarlo import CHUNK_SIZE
+
     small = run_monte_carlo(n_runs=3, seed=1, between_fixes=True)
-    big = run_monte_carlo(n_runs=700, seed=1, between_fixes=True)  # two chunks
+    big = run_monte_carlo(n_runs=CHUNK_SIZE + 3, seed=1, between_fixes=True)  # two chunks
     for name in ("e_mean", "e_cov", "P"):
         assert getattr(small.between, name).shape == getattr(big.between, name).shape
 
