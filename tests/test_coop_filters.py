@@ -202,3 +202,36 @@ def test_same_position_in_filter():
     same = P.replace(x0=np.array([10.0, 0, 0, 10.0, 0, 0]), u0=np.zeros(4))
     with pytest.raises(ValueError, match="x: the two vehicles are at the same position"):
         run_filter("lkf", y, same)
+
+
+def test_simulate_runs_and_median_run():
+    """simulate_runs draws exactly the truth-model test's data: re-running the median run by time-averaged
+    NEES with run_filter reproduces its NEES."""
+    from kfcal_helpers.coop import simulate_runs
+
+    pp = P.replace(duration=3.0)
+    mc = truth_model_test("ekf", n_runs=5, seed=4, params=pp, workers=1, every=2)
+    truth, y = simulate_runs(5, 4, pp, every=2)
+    i = mc.median_run()
+    avg = mc.nees.mean(axis=1)
+    assert np.sum(avg < avg[i]) == 2 and np.sum(avg > avg[i]) == 2
+    r = run_filter("ekf", y[i], pp, truth=truth[i])
+    assert np.allclose(r.nees, mc.nees[i]) and np.all(np.isnan(y[:, 1::2]))
+
+
+def test_lkf_predicted_bearings_are_wrapped(log):
+    r = run_filter("lkf", log.y, SHORT)
+    zb = r.z_pred[1:, [0, 2]]
+    assert np.all(zb > -np.pi) and np.all(zb <= np.pi)
+
+
+def test_plot_runs_consistency():
+    """Each run's points, the average and both bounds on each panel, titles with the inside fraction."""
+    from kfcal_helpers.coop.plots import plot_runs_consistency
+
+    mc = truth_model_test("ekf", n_runs=3, seed=1, params=P.replace(duration=2.0), workers=1)
+    fig = plot_runs_consistency(mc)
+    for ax, values in zip(fig.axes, (mc.nees, mc.nis)):
+        assert len(ax.lines) == 4 and ax.get_yscale() == "log"
+        assert ax.lines[0].get_xydata().shape[0] == np.isfinite(values).sum()
+    assert "inside" in fig.axes[0].get_title()

@@ -63,7 +63,7 @@ from .model import (
     wrap_measurement,
     wrap_state,
 )
-from .montecarlo import MonteCarloResult, truth_model_test
+from .montecarlo import MonteCarloResult, simulate_runs, truth_model_test
 from .simulation import DEFAULT_LOG_SEED, generate_log, simulate_measurements, simulate_truth
 from .tables import format_matrix, format_number, format_table
 
@@ -75,7 +75,7 @@ __all__ = [
     "discretize", "dynamics", "jacobian_A", "jacobian_B", "jacobian_C", "measure", "measurement_mean",
     "measurement_residual", "nominal_trajectory", "observability_matrix", "state_add", "state_mean",
     "state_residual", "step", "wrap_angle", "wrap_measurement", "wrap_state",
-    "MonteCarloResult", "truth_model_test",
+    "MonteCarloResult", "simulate_runs", "truth_model_test",
     "DEFAULT_LOG_SEED", "generate_log", "simulate_measurements", "simulate_truth",
     "format_matrix", "format_number", "format_table",
 ]

@@ -51,6 +51,7 @@ from .model import (
     state_mean,
     state_residual,
     wrap_angle,
+    wrap_measurement,
     wrap_state,
 )
 
@@ -295,7 +296,7 @@ def run_lkf(y, params=None, Q=None, R=None, x0=None, P0=None, truth=None,
         if k > 0:
             kf.predict(F=F[k - 1])
         if not np.isnan(s.y[k, 0]):
-            zk = ynom[k] + H[k] @ kf.x[:, 0]  # predicted measurement
+            zk = wrap_measurement(ynom[k] + H[k] @ kf.x[:, 0])  # predicted measurement, bearings wrapped
             if not subtract_nominal:
                 zk = H[k] @ kf.x[:, 0]  # the mistake: the perturbation model compared with the total y
             innov = measurement_residual(s.y[k], zk)
