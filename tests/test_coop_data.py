@@ -93,7 +93,7 @@ def course_log():
 def test_course_log_format(course_log):
     assert course_log.y.shape == (1001, 5) and np.all(np.isnan(course_log.y[0]))
     assert course_log.dT == pytest.approx(0.1)
-    # the first bearing crosses +-pi many times (SPEC: 25)
+    # the first bearing crosses +-pi many times (25 times)
     crossings = int(np.sum(np.abs(np.diff(course_log.y[1:, 0])) > np.pi))
     assert crossings == 25
 
@@ -127,9 +127,9 @@ def test_course_log_prefers_omega_dt(course_log):
 
 
 def test_unwrapped_ekf_innovation_on_course_log(course_log):
-    """The SPEC's pitfall: without wrapping, each +-pi crossing of a bearing gives a 2 pi innovation.
+    """A known pitfall: without wrapping, each +-pi crossing of a bearing gives a 2 pi innovation.
 
-    (The SPEC's NIS ~ 300 is for an EKF whose h and headings are not wrapped either; here
+    (An NIS of about 300 is reported for an EKF whose h and headings are not wrapped either; here
     h is wrapped, so only the crossings hurt, and the NIS is still several times too big.)
     """
     params = course_log.params()

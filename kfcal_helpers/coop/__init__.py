@@ -1,7 +1,7 @@
 """Cooperative localization of a ground robot (UGV) and an aerial robot (UAV).
 
 Six states (two planar poses), four constant controls, five measurements (two
-bearings, a range, the UAV's GPS), sampled every 0.1 s for 100 s (SPEC-coop).
+bearings, a range, the UAV's GPS), sampled every 0.1 s for 100 s.
 
 Modules:
 

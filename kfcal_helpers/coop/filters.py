@@ -508,7 +508,7 @@ def run_filter(name: str, y, params: CoopParams | None = None, Q=None, R=None, x
     Parameters
     ----------
     y : array (K, 5) -- one row per t_k = k dT; an all-NaN row means predict only
-    params : CoopParams -- model, nominal, dT; defaults to the SPEC's
+    params : CoopParams -- model, nominal, dT; defaults to the course's
     Q : (6, 6) filter process noise per step (default :func:`tuned_Q`)
     R : (5, 5) measurement noise (default ``params.Rtrue``)
     x0, P0 : initial estimate (6,) and covariance (6, 6) (default ``params.x0``, ``params.P0``)

@@ -80,7 +80,7 @@ def _vector(*values):
 class CoopParams:
     """All inputs of the cooperative-localization problem, validated on construction.
 
-    Defaults are the SPEC's: ``L = 0.5 m``, ``dT = 0.1 s``, 100 s, nominal
+    Defaults are the course's: ``L = 0.5 m``, ``dT = 0.1 s``, 100 s, nominal
     ``x0 = [10, 0, pi/2, -60, 0, -pi/2]``, ``u0 = [2, -pi/18, 12, pi/25]``,
     noise covariances ``Qtrue`` (6x6, of the DT process noise ``w_k``) and ``Rtrue`` (5x5).
 

@@ -185,7 +185,7 @@ def truth_model_test(name: str, n_runs: int = 50, seed: int = 0, params: CoopPar
     ----------
     n_runs : int >= 1 -- N
     seed : int -- seed of ``numpy.random.default_rng`` for all truths and measurements
-    params : CoopParams -- model, noise, duration (default: the SPEC's, 100 s)
+    params : CoopParams -- model, noise, duration (default: the course's, 100 s)
     alpha : float in (0, 1) -- significance of the two-sided chi-square tests
     every : int >= 1 -- keep the measurements of every ``every``-th step only (NaN elsewhere)
     workers : int >= 1 -- processes (default :func:`default_workers`); results do not depend on it

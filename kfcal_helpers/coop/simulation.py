@@ -42,7 +42,7 @@ def simulate_truth(params: CoopParams | None = None, rng=None, n_runs: int | Non
 
     Parameters
     ----------
-    params : CoopParams (default: the SPEC's)
+    params : CoopParams (default: the course's)
     rng : numpy Generator or int seed
     n_runs : None for one run, else the number of independent runs
     x0 : array (6,) or (n_runs, 6), optional -- initial state(s); default: drawn from N(params.x0, params.P0)
