@@ -605,7 +605,7 @@ def calibration_controls() -> dict:
 
 def coop_controls() -> dict:
     """The cooperative-localization demo's controls (ipywidgets), by name: ``filter``
-    (EKF/UKF toggle), ``q_scale`` (Q = q_scale Qtrue, log scale, default the EKF's tuned 1.5)
+    (EKF/UKF toggle), ``q_scale`` (Q = q_scale Qtrue, log scale, default the EKF's truth-model-tuned scale)
     and one checkbox per measurement, ``m0`` .. ``m4`` (all ticked).  They update on release
     (a UKF run takes a few tenths of a second)."""
     import ipywidgets as w

@@ -17,6 +17,10 @@ model, the truth is the correct one):
 Cooperative localization (50 truth-model runs):
 
 * ``ekf_no_wrap`` -- EKF innovations without bearing wrapping (the course's truth model);
+* ``ekf_omega_identity`` -- the noise entering as ``Omega = I`` (state noise Qtrue per step)
+  instead of ``Omega = dT I``, in the truth model *and* the filter (Q = 1.5 Qtrue, as tuned in
+  that model): the truth-model test cannot see it (it tests the filter against the same wrong
+  model); only the course log's NIS does;
 * ``lkf_no_nominal`` -- LKF innovation ``y - H dx-`` without the nominal measurement
   subtracted (small-perturbation truth model, where the correct LKF is consistent).
 
@@ -64,8 +68,9 @@ CALIBRATION_MISTAKES = {
 
 #: cooperative-localization mistakes, each after its correct filter
 COOP_MISTAKES = {
-    "ekf_correct": "the correct EKF (Q = 1.5 Qtrue, wrapped innovations)",
+    "ekf_correct": "the correct EKF (Omega = dT I, Q = Qtrue, wrapped innovations)",
     "ekf_no_wrap": "EKF innovations without bearing wrapping",
+    "ekf_omega_identity": "noise entering as Omega = I in truth model and filter (Q = 1.5 Qtrue)",
     "lkf_correct": "the correct LKF (small-perturbation truth model)",
     "lkf_no_nominal": "LKF innovation without the nominal measurement subtracted",
 }
@@ -98,14 +103,17 @@ def mistaken_model(params: CalibrationParams, mistake: str) -> ErrorStateModel:
 def coop_case(mistake: str, params: CoopParams | None = None) -> tuple[str, CoopParams, dict]:
     """Filter name, truth-model parameters and filter keyword arguments of a coop row.
 
-    The EKF rows use the SPEC's truth model and the tuned ``Q = 1.5 Qtrue``; the LKF rows a
-    truth that stays near the nominal (process noise 1e-4 Qtrue per step, P0 / 100), the
-    regime where a correct LKF is consistent (notebook 10), with the filter's Q equal to it.
+    The EKF rows use the course's truth model (``Omega = dT I``) and the tuned ``Q = Qtrue``, except
+    ``ekf_omega_identity``, whose truth model and filter both use ``Omega = I`` with the ``Q = 1.5 Qtrue``
+    tuned in that model; the LKF rows a truth that stays near the nominal (``Qtrue / 10^4``, P0 / 100),
+    the regime where a correct LKF is consistent (notebook 10), with the filter's Q equal to it.
     """
     mistake = require_choice("mistake", mistake, tuple(COOP_MISTAKES))
     p = params if params is not None else CoopParams()
+    if mistake == "ekf_omega_identity":
+        return "ekf", p.replace(noise_model="identity"), {"Q": 1.5 * p.Qtrue}
     if mistake.startswith("ekf"):
-        return "ekf", p, {"Q": 1.5 * p.Qtrue, "wrap_innovations": mistake == "ekf_correct"}
+        return "ekf", p, {"Q": p.Qtrue, "wrap_innovations": mistake == "ekf_correct"}
     near = p.replace(Qtrue=1e-4 * p.Qtrue, P0=0.01 * p.P0)
     return "lkf", near, {"Q": near.Qtrue, "subtract_nominal": mistake == "lkf_correct"}
 

@@ -3,17 +3,16 @@
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.io import savemat
 
 from kfcal_helpers.cli import main
-from kfcal_helpers.coop import TUNED_Q_SCALE, CoopParams, generate_log, write_log_csv
-from kfcal_helpers.coop.cli import Q_SCALE_LADDER
+from kfcal_helpers.coop import TUNED_Q_SCALE, CoopParams, course_log_path, generate_log, run_filter, write_log_csv
+from kfcal_helpers.coop.cli import Q_SCALE_LADDER, SOURCE_FIT, SOURCE_GIVEN, SOURCE_TEST
 
-COURSE_LOG = Path(__file__).resolve().parents[2] / "shared/data/coop_localization"
+COURSE_LOG = course_log_path()  # KFCAL_COURSE_LOG, or None
 
 
 def _json(capsys, argv):
@@ -45,31 +44,51 @@ def test_csv_log_and_every_table(capsys, tmp_path):
     assert any(line.split() == ["measurements", "5"] for line in text.splitlines())
 
 
-@pytest.mark.skipif(not COURSE_LOG.is_dir(), reason="course log not present")
-def test_course_log_subprocess():
-    """The default for a course log tunes Q by NIS on it: the NIS lands inside its bounds."""
-    proc = subprocess.run([sys.executable, "-m", "kfcal_helpers", "coop", "--filter", "ekf", "--log", str(COURSE_LOG),
+@pytest.mark.skipif(COURSE_LOG is None, reason="KFCAL_COURSE_LOG names no course log")
+@pytest.mark.parametrize("name, nis", [("ekf", 5.1304), ("ukf", 5.1316), ("lkf", 5.2764)])
+def test_course_log_subprocess(name, nis):
+    """The default for a course log is the truth-model-tuned Q (never tuned on the log); its NIS on the
+    log is then a test: inside the bounds for the EKF and UKF, just above them for the LKF (measured)."""
+    proc = subprocess.run([sys.executable, "-m", "kfcal_helpers", "coop", "--filter", name, "--log", str(COURSE_LOG),
                            "--json"], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout)
-    assert out["q_scale_source"] == "tuned by NIS on this log" and out["q_scale"] in Q_SCALE_LADDER
-    assert out["nis_bounds"][0] <= out["nis_time_average"] <= out["nis_bounds"][1]
+    assert out["q_scale_source"] == SOURCE_TEST == "truth-model test" and out["q_scale"] == TUNED_Q_SCALE[name]
+    lo, hi = out["nis_bounds"]
+    assert out["nis_time_average"] == pytest.approx(nis, abs=1e-4)
+    assert out["nis_inside"] == (lo <= out["nis_time_average"] <= hi) == (name != "lkf")
 
 
 def test_q_scale_choices(capsys, tmp_path):
-    """Generated log: the truth-model-tuned scale by default; 'auto' picks the ladder scale whose NIS is
-    closest to 5; a given number is used as given."""
+    """Default: the truth-model-tuned scale, for a generated and a CSV log alike; a given number is used as
+    given; 'auto' is a maximum-likelihood fit over the ladder, labelled as a fit, which reports the ladder's
+    likelihoods and NIS and the range of scales whose NIS falls inside the bounds."""
     out = _json(capsys, ["coop", "--filter", "ekf", "--json"])
-    assert out["q_scale"] == TUNED_Q_SCALE["ekf"] and out["q_scale_source"] == "truth-model tuning"
+    assert out["q_scale"] == TUNED_Q_SCALE["ekf"] and out["q_scale_source"] == SOURCE_TEST
     write_log_csv(generate_log(CoopParams(duration=20.0), seed=3), tmp_path / "log")
-    auto = _json(capsys, ["coop", "--filter", "ekf", "--log", str(tmp_path / "log"), "--json"])
-    assert auto["q_scale_source"] == "tuned by NIS on this log"
-    dist = {}
+    default = _json(capsys, ["coop", "--filter", "ekf", "--log", str(tmp_path / "log"), "--json"])
+    assert default["q_scale"] == TUNED_Q_SCALE["ekf"] and default["q_scale_source"] == SOURCE_TEST
+    auto = _json(capsys, ["coop", "--filter", "ekf", "--log", str(tmp_path / "log"), "--q-scale", "auto", "--json"])
+    assert auto["q_scale_source"] == SOURCE_FIT and "not a test" in SOURCE_FIT
+    assert auto["fit_ladder"] == list(Q_SCALE_LADDER)
+    log = generate_log(CoopParams(duration=20.0), seed=3)
+    p = log.params()
+    ll, nis = {}, {}
     for s in Q_SCALE_LADDER:
         given = _json(capsys, ["coop", "--filter", "ekf", "--log", str(tmp_path / "log"), "--q-scale", str(s), "--json"])
-        assert given["q_scale"] == s and given["q_scale_source"] == "given"
-        dist[s] = abs(np.log(given["nis_time_average"] / 5))
-    assert auto["q_scale"] == min(dist, key=dist.get)
+        assert given["q_scale"] == s and given["q_scale_source"] == SOURCE_GIVEN
+        nis[s] = given["nis_time_average"]
+        # my own innovation log-likelihood from the run's innovations and S
+        r = run_filter("ekf", log.y, p, Q=s * p.Qtrue)
+        has = np.isfinite(r.nis)
+        ll[s] = sum(-0.5 * (nu @ np.linalg.solve(S, nu) + np.log(np.linalg.det(S)) + 5 * np.log(2 * np.pi))
+                    for nu, S in zip(r.innovations[has], r.S[has]))
+    assert np.allclose(auto["fit_log_likelihood"], [ll[s] for s in Q_SCALE_LADDER], rtol=1e-9)
+    assert np.allclose(auto["fit_nis_time_average"], [nis[s] for s in Q_SCALE_LADDER], rtol=1e-9)
+    assert auto["q_scale"] == max(ll, key=ll.get)
+    lo, hi = auto["nis_bounds"]
+    inside = [s for s in Q_SCALE_LADDER if lo <= nis[s] <= hi]
+    assert auto["fit_scales_inside_nis_bounds"] == ([min(inside), max(inside)] if inside else [])
 
 
 def _bad_mat(tmp_path, **change):

@@ -182,3 +182,59 @@ def test_wrap_one_vector_matches_the_array_path():
     rows = np.array([wrap_state(x) for x in xs])
     assert np.allclose(rows, wrap_state(xs), atol=1e-12, rtol=0)
     assert rows[0, 2] == np.pi and rows[0, 5] == np.pi
+
+
+def test_noise_model_omega():
+    """Omega = dT I by default (state noise dT^2 Qtrue per step); Omega = I is the named variant."""
+    assert P.noise_model == "dT" and np.allclose(P.Omega, 0.1 * np.eye(6))
+    assert np.allclose(P.process_noise(), 0.01 * P.Qtrue)
+    ident = P.replace(noise_model="identity")
+    assert np.allclose(ident.Omega, np.eye(6)) and np.allclose(ident.process_noise(), P.Qtrue)
+    with pytest.raises(ValueError, match="noise_model must be one of 'dT', 'identity'"):
+        CoopParams(noise_model="I")
+    with pytest.raises(ValueError, match="Q must be positive definite"):
+        P.process_noise(-np.eye(6))
+
+
+@pytest.mark.parametrize("model, factor", [("dT", 0.01), ("identity", 1.0)])
+def test_truth_simulation_uses_omega(model, factor):
+    """The truth's one-step increments beyond the closed-form map have covariance Omega Qtrue Omega^T:
+    the sample variances of 400 runs x 20 steps lie within 5 standard errors of factor * Qtrue."""
+    from kfcal_helpers.coop import simulate_truth
+
+    pp = P.replace(noise_model=model, duration=2.0)
+    x = simulate_truth(pp, np.random.default_rng(3), n_runs=400)
+    w = state_residual(x[:, 1:], step(x[:, :-1], pp.u0, pp.dT, pp.L)).reshape(-1, 6)
+    var = w.var(axis=0)
+    expected = factor * np.diag(P.Qtrue)
+    assert np.all(np.abs(var / expected - 1) < 5 * np.sqrt(2 / w.shape[0]))
+
+
+def test_exact_step_jacobian():
+    """jacobian_step against finite differences of the exact map; I + dT A differs from it at second order."""
+    from kfcal_helpers.coop.model import jacobian_step
+
+    rng = np.random.default_rng(2)
+    x = P.x0 + rng.normal(size=(5, 6))
+    for xi in x:
+        fd = _fd(lambda a, b: state_residual(step(a, P.u0, P.dT, P.L), step(b, P.u0, P.dT, P.L)), xi)
+        assert np.allclose(jacobian_step(xi, P.u0, P.dT, P.L), fd, atol=1e-7)
+        euler = np.eye(6) + P.dT * jacobian_A(xi, P.u0, P.L)
+        gap = np.abs(euler - jacobian_step(xi, P.u0, P.dT, P.L)).max()
+        assert 1e-4 < gap < 0.1  # 12 m/s * (pi/25 * 0.1)^2 / ... : second order in dT
+
+
+def test_course_log_setting(tmp_path, monkeypatch):
+    """KFCAL_COURSE_LOG: a valid folder is loaded; unset or missing falls back to the generated log, saying so."""
+    from kfcal_helpers.coop import course_log, generate_log, write_log_csv
+
+    monkeypatch.delenv("KFCAL_COURSE_LOG", raising=False)
+    log, found, msg = course_log(P.replace(duration=1.0), seed=3)
+    assert not found and "is not set" in msg and len(msg.splitlines()) == 1
+    assert np.array_equal(log.y, generate_log(P.replace(duration=1.0), seed=3).y, equal_nan=True)
+    monkeypatch.setenv("KFCAL_COURSE_LOG", str(tmp_path / "nothing"))
+    assert course_log(P.replace(duration=1.0))[1] is False
+    write_log_csv(generate_log(P.replace(duration=1.0), seed=4), tmp_path / "log")
+    monkeypatch.setenv("KFCAL_COURSE_LOG", str(tmp_path / "log"))
+    log, found, msg = course_log()
+    assert found and str(tmp_path / "log") in msg and log.n_samples == 11

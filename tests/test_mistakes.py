@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from kfcal_helpers.calibration import CHECK_NAMES, CalibrationParams, error_state_model, run_monte_carlo, simulate
-from kfcal_helpers.coop import (CoopParams, generate_log, measure, measurement_residual, nominal_trajectory,
+from kfcal_helpers.consistency import chi2_bounds
+from kfcal_helpers.coop import (CoopParams, course_log, generate_log, measure, measurement_residual, nominal_trajectory,
                                 run_filter)
 from kfcal_helpers.exercises import check_failing_checks_gps_sigma, check_phi02_coupling_change
 from kfcal_helpers.mistakes import (CALIBRATION_MISTAKES, COOP_MISTAKES, MISTAKES, calibration_row, coop_case,
@@ -27,6 +28,7 @@ CAUGHT_BY = {
     "v0_zero": {"mean_error", "residual_independence", "residual_variance", "nees", "nis"},
     "ekf_correct": set(),
     "ekf_no_wrap": COOP_ALL,
+    "ekf_omega_identity": set(),
     "lkf_correct": set(),
     "lkf_no_nominal": COOP_ALL,
 }
@@ -106,6 +108,23 @@ def test_lkf_without_nominal_innovation_is_the_raw_measurement():
     right = run_filter("lkf", log.y, log.params())
     assert np.allclose(wrong.innovations[1], log.y[1])
     assert np.allclose(right.innovations[1], measurement_residual(log.y[1], measure(nominal_trajectory(log.params())[1])))
+
+
+def test_omega_identity_is_caught_only_by_the_course_log(table):
+    """The Omega = I row passes its truth-model test (same wrong model in truth and filter); on the course
+    log (KFCAL_COURSE_LOG, else skipped) its time-averaged NIS falls below the bounds, the correct EKF's not."""
+    name, p, kwargs = coop_case("ekf_omega_identity")
+    assert p.noise_model == "identity" and np.allclose(p.process_noise(), p.Qtrue)
+    assert table["ekf_omega_identity"].passed
+    log, found, _ = course_log()
+    if not found:
+        pytest.skip("KFCAL_COURSE_LOG names no course log")
+    lo, hi = chi2_bounds(5, int(np.isfinite(log.y[:, 0]).sum()), 0.05)
+    wrong = run_filter(name, log.y, log.params(p), **kwargs).time_average_nis()
+    right_name, right_p, right_kwargs = coop_case("ekf_correct")
+    right = run_filter(right_name, log.y, log.params(right_p), Q=right_kwargs["Q"]).time_average_nis()
+    assert wrong < lo <= right <= hi
+    assert wrong == pytest.approx(4.393, abs=5e-4) and right == pytest.approx(5.130, abs=5e-4)
 
 
 @pytest.mark.parametrize("bad", ["wrong_sign", "", None])

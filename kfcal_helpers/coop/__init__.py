@@ -1,20 +1,22 @@
 """Cooperative localization of a ground robot (UGV) and an aerial robot (UAV).
 
 Six states (two planar poses), four constant controls, five measurements (two
-bearings, a range, the UAV's GPS), sampled every 0.1 s for 100 s (SPEC-coop).
+bearings, a range, the UAV's GPS), sampled every 0.1 s for 100 s.
 
 Modules:
 
 * :mod:`.model` -- :class:`CoopParams`, dynamics, the exact closed-form one-step map,
   nominal trajectory, measurement function, angle wrapping, Jacobians A, B, C,
   F, G, H, the observability matrix over a window;
-* :mod:`.simulation` -- truth model (per-step noise N(0, Qtrue)) and seeded logs;
+* :mod:`.simulation` -- truth model (state noise Omega w_k, w_k ~ N(0, Qtrue), Omega = dT I by default) and seeded logs;
 * :mod:`.filters` -- LKF, EKF, UKF on filterpy, with a common :class:`FilterResult`;
 * :mod:`.montecarlo` -- truth-model tests (NEES/NIS with chi-square bounds);
-* :mod:`.data` -- course log loader/writer (CSV folder or ``.mat``);
+* :mod:`.data` -- course log loader/writer (CSV folder or ``.mat``); :mod:`.course` -- the
+  ``KFCAL_COURSE_LOG`` setting;
 * :mod:`.plots` -- figures of the notebooks; :mod:`.tables` -- fixed-precision text output; :mod:`.cli` -- ``python -m kfcal_helpers coop``.
 """
 
+from .course import COURSE_LOG_VARIABLE, course_log, course_log_path
 from .data import CoopLog, load_log, write_log_csv, write_log_mat
 from .filters import (
     FILTERS,
@@ -22,6 +24,8 @@ from .filters import (
     UKF_POINTS,
     CoopEKF,
     FilterResult,
+    QScaleFit,
+    fit_q_scale,
     make_ekf,
     make_lkf,
     make_ukf,
@@ -37,6 +41,7 @@ from .model import (
     MEAS_LABELS,
     N_MEAS,
     N_STATES,
+    NOISE_MODELS,
     STATE_ANGLES,
     STATE_LABELS,
     CoopParams,
@@ -58,19 +63,19 @@ from .model import (
     wrap_measurement,
     wrap_state,
 )
-from .montecarlo import MonteCarloResult, truth_model_test
+from .montecarlo import MonteCarloResult, simulate_runs, truth_model_test
 from .simulation import DEFAULT_LOG_SEED, generate_log, simulate_measurements, simulate_truth
 from .tables import format_matrix, format_number, format_table
 
 __all__ = [
-    "CoopLog", "load_log", "write_log_csv", "write_log_mat",
-    "FILTERS", "TUNED_Q_SCALE", "UKF_POINTS", "CoopEKF", "FilterResult", "make_ekf", "make_lkf", "make_ukf",
+    "COURSE_LOG_VARIABLE", "course_log", "course_log_path", "CoopLog", "load_log", "write_log_csv", "write_log_mat",
+    "FILTERS", "TUNED_Q_SCALE", "UKF_POINTS", "CoopEKF", "FilterResult", "QScaleFit", "fit_q_scale", "make_ekf", "make_lkf", "make_ukf",
     "run_ekf", "run_filter", "run_lkf", "run_ukf", "tune_q_scale", "tuned_Q",
-    "MEAS_ANGLES", "MEAS_LABELS", "N_MEAS", "N_STATES", "STATE_ANGLES", "STATE_LABELS", "CoopParams",
+    "MEAS_ANGLES", "MEAS_LABELS", "N_MEAS", "N_STATES", "NOISE_MODELS", "STATE_ANGLES", "STATE_LABELS", "CoopParams",
     "discretize", "dynamics", "jacobian_A", "jacobian_B", "jacobian_C", "measure", "measurement_mean",
     "measurement_residual", "nominal_trajectory", "observability_matrix", "state_add", "state_mean",
     "state_residual", "step", "wrap_angle", "wrap_measurement", "wrap_state",
-    "MonteCarloResult", "truth_model_test",
+    "MonteCarloResult", "simulate_runs", "truth_model_test",
     "DEFAULT_LOG_SEED", "generate_log", "simulate_measurements", "simulate_truth",
     "format_matrix", "format_number", "format_table",
 ]

@@ -6,11 +6,12 @@ Examples::
     python -m kfcal_helpers coop --filter ukf --log ../shared/data/coop_localization
     python -m kfcal_helpers coop --filter lkf --runs 50 --seed 1 --json
 
-The filter's process noise is ``Q = S * Qtrue``.  By default S is the filter's scale tuned by
-the truth-model tests (``TUNED_Q_SCALE``) for the generated log and the Monte Carlo, and is
-tuned by NIS on the log itself for a course log (``--q-scale auto``: the scale of
-``Q_SCALE_LADDER`` whose time-averaged NIS is closest to its expected value 5), because a
-course log need not follow the Qtrue it ships with.
+The filter's process noise is ``Q = S * Qtrue`` (covariance of the DT noise ``w_k``, which enters
+the state through ``Omega = dT * I``).  By default S is the filter's scale tuned by the truth-model
+tests (``TUNED_Q_SCALE``, ``q_scale_source: "truth-model test"``), for a course log too: the NIS
+reported on the log is then a test of that Q.  ``--q-scale auto`` (opt-in) instead fits S to the
+log: the maximum-likelihood scale of ``Q_SCALE_LADDER``, reported with the range of ladder scales
+whose NIS falls inside the bounds; that is a fit, not a test.
 """
 
 from __future__ import annotations
@@ -23,15 +24,21 @@ import numpy as np
 from ..consistency import chi2_bounds
 from ..validation import require_int, require_positive
 from .data import load_log
-from .filters import FILTERS, TUNED_Q_SCALE, run_filter, tune_q_scale
+from .filters import FILTERS, TUNED_Q_SCALE, fit_q_scale, run_filter
 from .model import N_MEAS, CoopParams
 from .montecarlo import truth_model_test
 from .simulation import DEFAULT_LOG_SEED, generate_log
 
-__all__ = ["add_parser", "run", "log_summary", "Q_SCALE_LADDER", "parse_q_scale"]
+__all__ = ["add_parser", "run", "log_summary", "Q_SCALE_LADDER", "parse_q_scale", "SOURCE_TEST", "SOURCE_FIT",
+           "SOURCE_GIVEN"]
 
 #: candidate scales S of Q = S * Qtrue for ``--q-scale auto`` (a 1-2-5 ladder)
 Q_SCALE_LADDER = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0)
+
+#: the values of ``q_scale_source``
+SOURCE_TEST = "truth-model test"
+SOURCE_FIT = "fit to this log (maximum likelihood over the ladder), not a test"
+SOURCE_GIVEN = "given"
 
 
 def parse_q_scale(text):
@@ -55,8 +62,8 @@ def add_parser(subparsers):
     p.add_argument("--seed", type=int, default=None,
                    help=f"seed of the generated log (default {DEFAULT_LOG_SEED}) or of the Monte Carlo (default 0)")
     p.add_argument("--q-scale", default=None, metavar="S",
-                   help="filter Q = S * Qtrue: a positive number, or 'auto' to tune S by NIS on the log "
-                        "(default: auto for --log, else the filter's truth-model-tuned scale)")
+                   help="filter Q = S * Qtrue: a positive number, or 'auto' to fit S to the log by maximum "
+                        "likelihood over a ladder (a fit, not a test; default: the filter's truth-model-tuned scale)")
     p.add_argument("--every", type=int, default=1, metavar="M", help="use the measurements of every M-th step only")
     p.add_argument("--alpha", type=float, default=0.05, help="significance of the chi-square tests (default 0.05)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -69,7 +76,9 @@ def log_summary(result, alpha: float = 0.05) -> dict:
     n_meas = int(np.isfinite(result.nis).sum())
     if n_meas == 0:
         raise ValueError("log: it holds no measurement (every ydata column is NaN)")
-    out = {"nis_time_average": result.time_average_nis(), "nis_bounds": list(chi2_bounds(N_MEAS, n_meas, alpha)),
+    lo, hi = chi2_bounds(N_MEAS, n_meas, alpha)
+    nis = result.time_average_nis()
+    out = {"nis_time_average": nis, "nis_bounds": [lo, hi], "nis_inside": bool(lo <= nis <= hi),
            "measurements": n_meas}
     if result.nees is not None:
         out["nees_time_average"] = float(result.nees.mean())
@@ -87,14 +96,14 @@ def run(args) -> int:
             raise ValueError("--runs: a truth-model Monte Carlo simulates its own data; do not give --log with it")
         runs = require_int("runs", args.runs, minimum=1)
         if q_scale == "auto":
-            raise ValueError("q-scale 'auto' tunes on a log; a truth-model Monte Carlo needs a number or the default")
+            raise ValueError("q-scale 'auto' fits Q to a log; a truth-model Monte Carlo needs a number or the default")
         params = CoopParams()
         scale = TUNED_Q_SCALE[args.filter] if q_scale is None else q_scale
         mc = truth_model_test(args.filter, runs, seed=0 if args.seed is None else args.seed, params=params,
                               alpha=args.alpha, every=every, Q=scale * params.Qtrue)
         out = mc.summary()
         out["q_scale"] = scale
-        out["q_scale_source"] = "truth-model tuning" if q_scale is None else "given"
+        out["q_scale_source"] = SOURCE_TEST if q_scale is None else SOURCE_GIVEN
     else:
         if args.log is not None:
             log = load_log(args.log)
@@ -103,27 +112,35 @@ def run(args) -> int:
         if every > 1:
             log = log.every(every)
         params = log.params()
-        if q_scale is None:
-            q_scale = "auto" if args.log is not None else TUNED_Q_SCALE[args.filter]
+        fit = None
         if q_scale == "auto":
-            scale, _ = tune_q_scale(args.filter, log.y, Q_SCALE_LADDER, params)
-            source = "tuned by NIS on this log"
+            fit = fit_q_scale(args.filter, log.y, Q_SCALE_LADDER, params, alpha=args.alpha)
+            scale, source = fit.best, SOURCE_FIT
+        elif q_scale is None:
+            scale, source = TUNED_Q_SCALE[args.filter], SOURCE_TEST
         else:
-            scale = q_scale
-            source = "truth-model tuning" if args.q_scale is None else "given"
+            scale, source = q_scale, SOURCE_GIVEN
         result = run_filter(args.filter, log.y, params, Q=scale * params.Qtrue, truth=log.truth)
         if not np.all(np.isfinite(result.x)):
             raise ValueError(f"log: the {args.filter.upper()} diverged (non-finite estimate)")
         out = {"filter": args.filter, "steps": int(log.n_samples), "source": log.source, "q_scale": scale,
-               "q_scale_source": source,
-               "every": every, **log_summary(result, args.alpha)}
+               "q_scale_source": source, "every": every, **log_summary(result, args.alpha)}
+        if fit is not None:
+            inside = fit.inside
+            out["fit_ladder"] = [float(s) for s in fit.scales]
+            out["fit_log_likelihood"] = [float(v) for v in fit.log_likelihood]
+            out["fit_nis_time_average"] = [float(v) for v in fit.nis_averages]
+            out["fit_scales_inside_nis_bounds"] = ([float(inside.min()), float(inside.max())] if inside.size
+                                                   else [])
     out["seconds"] = time.perf_counter() - t0
     if args.json:
         print(json.dumps(out))
     else:
         width = max(len(k) for k in out)
         for key, value in out.items():
-            if isinstance(value, float):
+            if isinstance(value, bool):
+                value = "yes" if value else "no"
+            elif isinstance(value, float):
                 value = f"{value:.4g}"
             elif isinstance(value, list):
                 value = "[" + ", ".join(f"{v:.4g}" for v in value) + "]"

@@ -79,7 +79,7 @@ class CoopLog:
         return self.t.size
 
     def params(self, base: CoopParams | None = None) -> CoopParams:
-        """``base`` (default: the SPEC's) with this log's dT, duration, Qtrue and Rtrue."""
+        """``base`` (default: the course's) with this log's dT, duration, Qtrue and Rtrue."""
         base = base if base is not None else CoopParams()
         return base.replace(dT=self.dT, duration=self.dT * (self.n_samples - 1), Qtrue=self.Qtrue, Rtrue=self.Rtrue)
 

@@ -27,6 +27,7 @@ __all__ = [
     "MEAS_ANGLES",
     "STATE_LABELS",
     "MEAS_LABELS",
+    "NOISE_MODELS",
     "CoopParams",
     "require_last_axis",
     "wrap_angle",
@@ -44,6 +45,7 @@ __all__ = [
     "jacobian_A",
     "jacobian_B",
     "jacobian_C",
+    "jacobian_step",
     "discretize",
     "observability_matrix",
 ]
@@ -60,6 +62,12 @@ MEAS_LABELS = (r"bearing UGV$\to$UAV [rad]", "range [m]", r"bearing UAV$\to$UGV 
                r"UAV east $\xi_a$ [m]", r"UAV north $\eta_a$ [m]")
 
 
+#: how the DT process noise w_k ~ N(0, Q) enters the state, x_{k+1} = f_d(x_k, u_k) + Omega w_k:
+#: "dT" -- Omega = dT * I (the course's model: per-step state noise dT^2 Q); "identity" -- Omega = I
+#: (per-step state noise Q, a known mistake kept as a named variant)
+NOISE_MODELS = ("dT", "identity")
+
+
 def _diag(*values):
     return field(default_factory=lambda: np.diag(np.array(values, dtype=float)))
 
@@ -72,9 +80,15 @@ def _vector(*values):
 class CoopParams:
     """All inputs of the cooperative-localization problem, validated on construction.
 
-    Defaults are the SPEC's: ``L = 0.5 m``, ``dT = 0.1 s``, 100 s, nominal
+    Defaults are the course's: ``L = 0.5 m``, ``dT = 0.1 s``, 100 s, nominal
     ``x0 = [10, 0, pi/2, -60, 0, -pi/2]``, ``u0 = [2, -pi/18, 12, pi/25]``,
-    per-step (discrete-time) noise covariances ``Qtrue`` (6x6) and ``Rtrue`` (5x5).
+    noise covariances ``Qtrue`` (6x6, of the DT process noise ``w_k``) and ``Rtrue`` (5x5).
+
+    ``noise_model`` says how ``w_k`` enters the state, ``x_{k+1} = f_d(x_k, u_k) + Omega w_k``:
+    ``"dT"`` (default, the course's model) has ``Omega = dT * I``, so the state receives noise of
+    covariance ``Omega Qtrue Omega^T = dT^2 Qtrue`` per step; ``"identity"`` has ``Omega = I``
+    (``Qtrue`` per step, a named variant for the mistake of notebook 14).  The truth simulation and
+    every filter use the same ``Omega`` (:meth:`process_noise`).
     ``P0`` (6x6) is the covariance of the initial state about ``x0``: the truth-model
     tests draw the true initial state from N(x0, P0) and every filter starts at
     (x0, P0).  Arrays are stored read-only.
@@ -88,8 +102,12 @@ class CoopParams:
     Qtrue: np.ndarray = _diag(0.001, 0.001, 0.01, 0.001, 0.001, 0.01)  #: process noise per step
     Rtrue: np.ndarray = _diag(0.0225, 64.0, 0.04, 36.0, 36.0)  #: measurement noise
     P0: np.ndarray = _diag(1.0, 1.0, 0.01, 1.0, 1.0, 0.01)  #: initial covariance (m^2, rad^2)
+    noise_model: str = "dT"  #: how w_k enters the state: "dT" (Omega = dT I) or "identity" (Omega = I)
 
     def __post_init__(self):
+        if self.noise_model not in NOISE_MODELS:
+            raise ValueError(f"noise_model must be one of {', '.join(repr(m) for m in NOISE_MODELS)}, "
+                             f"got {self.noise_model!r}")
         for name in ("L", "dT", "duration"):
             object.__setattr__(self, name, require_positive(name, getattr(self, name)))
         steps = self.duration / self.dT
@@ -121,6 +139,19 @@ class CoopParams:
     def t(self) -> np.ndarray:
         """Sample times, s, shape (n_samples,)."""
         return self.dT * np.arange(self.n_samples)
+
+    @property
+    def Omega(self) -> np.ndarray:
+        """Noise input matrix ``Omega`` (6x6): ``dT * I`` for ``noise_model="dT"``, ``I`` for "identity"."""
+        scale = self.dT if self.noise_model == "dT" else 1.0
+        return scale * np.eye(N_STATES)
+
+    def process_noise(self, Q=None) -> np.ndarray:
+        """Per-step state-noise covariance ``Omega Q Omega^T`` (6x6) for the covariance ``Q`` of
+        ``w_k`` (default ``Qtrue``)."""
+        Q = self.Qtrue if Q is None else require_covariance("Q", Q, N_STATES)
+        Om = self.Omega
+        return Om @ Q @ Om.T
 
     def replace(self, **changes) -> "CoopParams":
         """A copy with some fields changed (validated again)."""
@@ -351,6 +382,29 @@ def jacobian_C(x) -> np.ndarray:
     C[..., 3, 3] = 1.0
     C[..., 4, 4] = 1.0
     return C
+
+
+def jacobian_step(x, u, dT: float = 0.1, L: float = 0.5) -> np.ndarray:
+    """Exact DT state Jacobian ``d step(x, u) / dx`` of the closed-form one-step map, shape (..., 6, 6).
+
+    The identity plus, for each vehicle, the heading column ``d [-sin(m), cos(m)]`` with ``d`` the
+    chord ``v dT sinc(w dT / 2)`` and ``m = theta + w dT / 2`` its direction.  ``I + dT A`` is its
+    Euler approximation (chord ``v dT`` along ``theta``): both agree to first order in ``dT``, but only
+    this one keeps the model's invariance under a rotation of the whole scene.
+    """
+    x = require_last_axis("x", x, N_STATES)
+    u = require_last_axis("u", u, 4)
+    dT, L = require_positive("dT", dT), require_positive("L", L)
+    vg, wg, va, wa = _controls(u, L)
+    J = np.zeros(np.broadcast_shapes(x.shape[:-1], np.shape(vg)) + (6, 6))
+    J[...] = np.eye(N_STATES)
+    for i, v, w in ((0, vg, wg), (3, va, wa)):
+        half = 0.5 * w * dT
+        d = v * dT * np.sinc(half / np.pi)
+        mid = x[..., i + 2] + half
+        J[..., i, i + 2] = -d * np.sin(mid)
+        J[..., i + 1, i + 2] = d * np.cos(mid)
+    return J
 
 
 def discretize(A, B, C, dT: float = 0.1):

@@ -1,7 +1,7 @@
 """Truth-model tests: Monte Carlo NEES and NIS of any of the three filters.
 
-Each run draws a true initial state from N(x0, P0), simulates the truth with per-step
-process noise N(0, Qtrue) and measurements with noise N(0, Rtrue)
+Each run draws a true initial state from N(x0, P0), simulates the truth with process
+noise Omega w_k, w_k ~ N(0, Qtrue) (Omega = dT I by default, ``params.noise_model``) and measurements with noise N(0, Rtrue)
 (:mod:`~kfcal_helpers.coop.simulation`), and runs the filterpy filter of
 :mod:`~kfcal_helpers.coop.filters` on it.  All runs are drawn up front from one
 seeded generator, so the result does not depend on ``workers``.
@@ -35,7 +35,7 @@ from .filters import FILTERS, run_filter
 from .model import N_MEAS, N_STATES, CoopParams
 from .simulation import simulate_measurements, simulate_truth
 
-__all__ = ["COOP_CHECK_NAMES", "MonteCarloResult", "truth_model_test", "default_workers"]
+__all__ = ["COOP_CHECK_NAMES", "MonteCarloResult", "truth_model_test", "simulate_runs", "default_workers"]
 
 #: the checks of :meth:`MonteCarloResult.checks`
 COOP_CHECK_NAMES = ("mean_error", "nees", "nis")
@@ -88,6 +88,12 @@ class MonteCarloResult:
     def nis_inside_fraction(self) -> float:
         """Share of the steps with a measurement whose run-averaged NIS is inside ``nis_bounds``."""
         return inside_fraction(self.nis_mean, *self.nis_bounds)
+
+    def median_run(self) -> int:
+        """Index of the median run by time-averaged NEES (the "typical run" of the notebooks;
+        for an even N the lower of the two middle runs)."""
+        avg = self.nees.mean(axis=1)
+        return int(np.argsort(avg, kind="stable")[(self.runs - 1) // 2])
 
     @property
     def rms_error(self) -> np.ndarray:
@@ -154,6 +160,22 @@ def _one_run(task):
     return r.nees, r.nis, r.errors(truth), r.sigma2
 
 
+def simulate_runs(n_runs: int, seed: int = 0, params: CoopParams | None = None, every: int = 1):
+    """The truths (N, K, 6) and measurements (N, K, 5) that :func:`truth_model_test` draws for
+    ``n_runs``, ``seed``, ``params`` and ``every`` (so a single run can be re-run and plotted)."""
+    n_runs = require_int("n_runs", n_runs, minimum=1)
+    seed = require_int("seed", seed, minimum=0)
+    every = require_int("every", every, minimum=1)
+    p = params if params is not None else CoopParams()
+    rng = np.random.default_rng(seed)
+    truth = simulate_truth(p, rng, n_runs=n_runs)
+    y = simulate_measurements(truth, p, rng)
+    keep = np.zeros(p.n_samples, dtype=bool)
+    keep[::every] = True
+    y[:, ~keep, :] = np.nan
+    return truth, y
+
+
 def truth_model_test(name: str, n_runs: int = 50, seed: int = 0, params: CoopParams | None = None,
                      alpha: float = 0.05, every: int = 1, workers: int | None = None,
                      desc: str | None = None, **filter_kwargs) -> MonteCarloResult:
@@ -163,7 +185,7 @@ def truth_model_test(name: str, n_runs: int = 50, seed: int = 0, params: CoopPar
     ----------
     n_runs : int >= 1 -- N
     seed : int -- seed of ``numpy.random.default_rng`` for all truths and measurements
-    params : CoopParams -- model, noise, duration (default: the SPEC's, 100 s)
+    params : CoopParams -- model, noise, duration (default: the course's, 100 s)
     alpha : float in (0, 1) -- significance of the two-sided chi-square tests
     every : int >= 1 -- keep the measurements of every ``every``-th step only (NaN elsewhere)
     workers : int >= 1 -- processes (default :func:`default_workers`); results do not depend on it
@@ -185,12 +207,7 @@ def truth_model_test(name: str, n_runs: int = 50, seed: int = 0, params: CoopPar
     if "ukf_alpha" in filter_kwargs:
         filter_kwargs["alpha"] = filter_kwargs.pop("ukf_alpha")
     p = params if params is not None else CoopParams()
-    rng = np.random.default_rng(seed)
-    truth = simulate_truth(p, rng, n_runs=n_runs)
-    y = simulate_measurements(truth, p, rng)
-    keep = np.zeros(p.n_samples, dtype=bool)
-    keep[::every] = True
-    y[:, ~keep, :] = np.nan
+    truth, y = simulate_runs(n_runs, seed, p, every)
     tasks = [(name, y[i], truth[i], p, filter_kwargs) for i in range(n_runs)]
     desc = desc or f"{name.upper()} truth-model test"
     if workers > 1 and n_runs > 1:

@@ -15,7 +15,7 @@ import numpy as np
 from .model import MEAS_LABELS, N_MEAS, STATE_LABELS
 
 __all__ = ["plot_series", "plot_states", "plot_errors", "plot_measurements", "plot_consistency", "plot_paths",
-           "plot_nis_comparison"]
+           "plot_nis_comparison", "plot_runs_consistency"]
 
 
 def _lw(scale: float = 1.0) -> float:
@@ -165,5 +165,34 @@ def plot_nis_comparison(averages: dict, bounds, title: str = "Time-averaged NIS 
     ax.set_title(title)
     ax.legend(loc="upper right")
     ax.grid(False, axis="x")
+    fig.tight_layout()
+    return fig
+
+
+def plot_runs_consistency(mc, title: str | None = None, figsize=None, ylim=None):
+    """Every run's NEES and NIS per step (small grey points), their run averages (line) and the
+    chi-square bounds of the average (dashed) for a
+    :class:`~kfcal_helpers.coop.montecarlo.MonteCarloResult`; log y scale (default 11 x 3.6 in)."""
+    fig, axes = plt.subplots(1, 2, figsize=figsize or (11, 3.6))
+    ms = 0.15 * mpl.rcParams["lines.markersize"]
+    for ax, values, mean, bounds, name in ((axes[0], mc.nees, mc.nees_mean, mc.nees_bounds, "NEES"),
+                                           (axes[1], mc.nis, mc.nis_mean, mc.nis_bounds, "NIS")):
+        ok = np.isfinite(mean)
+        tt = np.broadcast_to(mc.t, values.shape)[:, ok]
+        _ = ax.plot(tt.ravel(), values[:, ok].ravel(), ".", ms=ms, color="0.6", alpha=0.3, rasterized=True,
+                    label=f"each of the {mc.runs} runs")
+        _ = ax.plot(mc.t[ok], mean[ok], "-", color="C0", lw=_lw(0.8), label=f"average of {mc.runs} runs")
+        for b, lab in zip(bounds, (f"χ² bounds of the average, α = {mc.alpha:g}", None)):
+            _ = ax.axhline(b, color="k", ls="--", lw=_lw(0.8), label=lab)
+        ax.set_yscale("log")
+        if ylim is not None:
+            ax.set_ylim(*ylim)
+        ax.set_xlabel("time $t$ [s]")
+        ax.set_ylabel(f"{name} [-]")
+        frac = mc.nees_inside_fraction if name == "NEES" else mc.nis_inside_fraction
+        ax.set_title(f"{name}: average inside [{bounds[0]:.2f}, {bounds[1]:.2f}] at {100 * frac:.1f}% of steps")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="lower right", fontsize="small", markerscale=6)
+    fig.suptitle(title or f"{mc.filter.upper()} truth-model test, alpha = {mc.alpha:g}")
     fig.tight_layout()
     return fig

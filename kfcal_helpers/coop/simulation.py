@@ -1,9 +1,11 @@
 """Truth-model simulation: noisy states and measurements, and seeded observation logs.
 
-Noise convention (discrete time, per step): ``x_{k+1} = phi(x_k, u0) + w_k`` with
-``phi`` the exact closed-form one-step map (:func:`~kfcal_helpers.coop.model.step`)
-and ``w_k ~ N(0, Qtrue)``; ``y_k = h(x_k) + v_k`` with ``v_k ~ N(0, Rtrue)``, bearings
-wrapped.  The filters use the same convention (``P- = F P F^T + Q``).  The true
+Noise model (discrete time): ``x_{k+1} = phi(x_k, u0) + Omega w_k`` with ``phi`` the exact
+closed-form one-step map (:func:`~kfcal_helpers.coop.model.step`), ``w_k ~ N(0, Qtrue)`` and
+``Omega = params.Omega`` (``dT * I`` by default, so the state noise per step has covariance
+``dT^2 Qtrue``; ``I`` for ``noise_model="identity"``); ``y_k = h(x_k) + v_k`` with
+``v_k ~ N(0, Rtrue)``, bearings wrapped.  The filters use the same ``Omega``
+(``P- = F P F^T + Omega Q Omega^T``).  The true
 initial state is drawn from ``N(x0, P0)``.  Everything is vectorised over runs.
 """
 
@@ -40,7 +42,7 @@ def simulate_truth(params: CoopParams | None = None, rng=None, n_runs: int | Non
 
     Parameters
     ----------
-    params : CoopParams (default: the SPEC's)
+    params : CoopParams (default: the course's)
     rng : numpy Generator or int seed
     n_runs : None for one run, else the number of independent runs
     x0 : array (6,) or (n_runs, 6), optional -- initial state(s); default: drawn from N(params.x0, params.P0)
@@ -58,7 +60,7 @@ def simulate_truth(params: CoopParams | None = None, rng=None, n_runs: int | Non
     else:
         start = np.broadcast_to(np.asarray(x0, dtype=float), runs + (N_STATES,))
     K = p.n_samples
-    noise = _gaussian(rng, p.Qtrue, runs + (K - 1,)) if process_noise else np.zeros(runs + (K - 1, N_STATES))
+    noise = _gaussian(rng, p.process_noise(), runs + (K - 1,)) if process_noise else np.zeros(runs + (K - 1, N_STATES))
     x = np.empty(runs + (K, N_STATES))
     x[..., 0, :] = wrap_state(start)
     for k in range(K - 1):

@@ -28,6 +28,7 @@ from scipy import stats
 from ..calibration import CalibrationParams
 from ..consistency import chi2_bounds
 from ..coop import N_MEAS, N_STATES, CoopParams, jacobian_A, jacobian_C, nominal_trajectory, observability_matrix
+from ..coop.model import jacobian_step
 from ..validation import require_finite, require_int, require_positive
 from ._core import Feedback, as_array, judge, unanswered
 
@@ -73,9 +74,10 @@ HINTS: dict[str, dict[str, str]] = {
     },
     "18.2": {
         "ranks": "those are ranks; the exercise asks how many directions are lost: 6 - rank",
-        "rotation": "a rotation of the whole scene is indeed invisible to bearings and range, but the "
-                    "linearized DT model (F = I + ΔT A) sees it faintly: count with np.linalg.matrix_rank "
-                    "and look at the smallest singular values",
+        "euler": "that is what the Euler F = I + ΔT A gives: its straight chord breaks the model's invariance "
+                 "under a rotation of the whole scene, so one singular value is small (~1e-5) but not zero. "
+                 "Use the exact Jacobian of the one-step map, jacobian_step: is a rotation of everything visible "
+                 "to two relative bearings and a range?",
         "no_gps_observable": "without the GPS, move both vehicles by the same vector: does any bearing or "
                              "the range change?",
         "no_range_lost": "without the range the two bearings and the UAV's GPS still locate the UGV as the "
@@ -209,14 +211,23 @@ def check_demo_subset_nis_bounds(answer, *, n_meas: int = 3, n_samples: int = 10
 LOST_SUBSETS = ((0, 2, 3, 4), (0, 1, 2), (1, 3, 4))
 
 
-def lost_directions(subsets=LOST_SUBSETS, window: int = 10, params: CoopParams | None = None) -> np.ndarray:
+def lost_directions(subsets=LOST_SUBSETS, window: int = 10, params: CoopParams | None = None,
+                    exact: bool = True) -> np.ndarray:
     """6 - rank of the stacked observability matrix (``observability_matrix``, rank by
     ``np.linalg.matrix_rank``) of the linearized DT model along the nominal, over the first
-    ``window`` samples, with only the rows ``subset`` of H; one integer per subset."""
+    ``window`` samples, with only the rows ``subset`` of H; one integer per subset.
+
+    ``exact=True`` uses the exact Jacobian of the one-step map (``jacobian_step``);
+    ``exact=False`` the Euler ``F = I + dT A``, which sees a rotation of the whole scene faintly."""
     p = CoopParams() if params is None else params
     window = require_int("window", window, minimum=1)
     x = nominal_trajectory(p, window)
-    F = np.eye(N_STATES) + p.dT * jacobian_A(x[:-1], p.u0, p.L) if window > 1 else np.zeros((0, 6, 6))
+    if window < 2:
+        F = np.zeros((0, 6, 6))
+    elif exact:
+        F = jacobian_step(x[:-1], p.u0, p.dT, p.L)
+    else:
+        F = np.eye(N_STATES) + p.dT * jacobian_A(x[:-1], p.u0, p.L)
     H = jacobian_C(x)
     out = []
     for sub in subsets:
@@ -231,19 +242,22 @@ def check_demo_lost_directions(answer, *, window: int = 10) -> Feedback:
     """Exercise 18.2: for the subsets no range ``(0, 2, 3, 4)``, no GPS ``(0, 1, 2)`` and no
     bearings ``(1, 3, 4)``, the number of state directions that are unobservable over the first
     ``window`` samples of the nominal (6 - rank of the stacked observability matrix of the
-    linearized DT model); answer: 3 integers."""
+    linearized DT model with the exact Jacobian of the one-step map); answer: 3 integers.
+    Without the GPS, three directions are lost: the common translation (2) and a rotation of the
+    whole scene (1); the Euler ``F = I + dT A`` hides the rotation (an artefact), hence 2."""
     ex = "18.2"
     window = require_int("window", window, minimum=2)
     right = lost_directions(LOST_SUBSETS, window)
     a = as_array(answer)
     if a is not None and a.size == 3 and np.all(np.isfinite(a)) and not np.allclose(a, np.round(a)):
         return Feedback(ex, False, "a number of directions is a whole number: 6 minus a rank")
-    pairs = [(N_STATES - right, "ranks"), (right + np.array([0, 1, 0]), "rotation"),
+    pairs = [(N_STATES - right, "ranks"), (lost_directions(LOST_SUBSETS, window, exact=False), "euler"),
              (right * np.array([1, 0, 1]), "no_gps_observable")]
     for lost in (1, 2, 3):
         pairs.append((right + np.array([lost, 0, 0]), "no_range_lost"))
         pairs.append((right + np.array([0, 0, lost]), "no_bearings_lost"))
     return judge(ex, answer, right, _wrong(ex, pairs, right, 0.0), rtol=0.0, atol=1e-9,
                  praise="only the GPS pins the pair to the map: without it the common translation "
-                        "(2 directions) is lost",
-                 hint="build O with observability_matrix(F, H[:, rows]) over the window and count 6 - rank")
+                        "(2 directions) and a rotation of the whole scene (1) are lost",
+                 hint="build O with observability_matrix(F, H[:, rows]) over the window, F the exact "
+                      "jacobian_step, and count 6 - rank")
