@@ -1,4 +1,4 @@
-"""Monte Carlo validation of the calibration filter (six checks at the GPS fixes, and one between them).
+"""Monte Carlo validation of the calibration filter (seven checks at the GPS fixes, and one between them).
 
 Realizations are simulated in chunks of :data:`CHUNK_SIZE` (the 200 Hz arrays of a
 chunk are dropped once the chunk is filtered), and only sums over realizations
@@ -14,7 +14,8 @@ The checks, each judged against its own sampling band at significance
    against the chi-square interval ``P chi2_{N-1}(alpha/2, 1-alpha/2)/(N-1)``,
    correlations against the filter's, with Fisher's ``tanh(atanh(rho_P) +- z/sqrt(N-3))``.
 3. ``orthogonality``: ``(1/N) sum (e - e_mean) dx_hat^T`` against
-   ``+-z sqrt(P_kk mean(dx_hat_l^2)/N)`` (the spread of a product of independent factors).
+   ``+-z sqrt(P_kk mean(dx_hat_l^2)/N)`` (the spread of a product of independent factors; slightly
+   conservative, as the exact spread has the centred ``mean((dx_hat_l - mean dx_hat)^2) <= mean(dx_hat_l^2)``).
 4. ``residual_independence``: the correlation ``sum r_i,a r_m,b / sqrt(sum r_i,a^2 sum r_m,b^2)``
    for every pair of fixes ``i < m`` against ``+-q/sqrt(N - 1 + q^2)``, ``q = t_{N-1}(1 - alpha/2)``
    (exact for independent zero-mean Gaussian residuals: the correlation is the cosine of the
@@ -34,7 +35,8 @@ Between fixes (``run_monte_carlo(..., between_fixes=True)``): the error at every
 (memory independent of N), and :meth:`MonteCarloResult.between_fixes_check` compares
 its ensemble variance at every sample with the filter's ``P_kk(t_j)`` against the
 chi-square interval ``P_kk chi2_{N-1}(level/2, 1-level/2)/(N-1)`` (its own family of
-entries: the seven checks above are not changed by it).
+entries at ``alpha``: the seven checks above are not changed by it, and over all eight checks a
+consistent filter fails somewhere with probability at most ``2 alpha``).
 """
 
 from __future__ import annotations
