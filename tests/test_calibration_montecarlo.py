@@ -129,3 +129,32 @@ def test_cli_json_has_the_between_fixes_check(capsys):
     d = json.loads(capsys.readouterr().out)
     c = d["checks"]["between_fixes"]
     assert c["passed"] is True and 0.0 <= c["inside_fraction"] <= 1.0 and c["worst"] <= 1.0
+
+
+@pytest.mark.parametrize("n_runs", [10, 40])
+def test_residual_correlation_band_has_its_level(n_runs):
+    """The residual_independence band, fed independent zero-mean Gaussian residuals, rejects a share
+    alpha of the pairs (within a binomial band), and equals the exact quantile of |rho|: for the
+    uncentred correlation of two independent Gaussian vectors in R^N, rho^2 ~ Beta(1/2, (N-1)/2)."""
+    from dataclasses import replace
+
+    from scipy import stats
+
+    mc = run_monte_carlo(n_runs=n_runs, seed=0)
+    n_gps = mc.params.n_gps
+    rng = np.random.default_rng(2024 + n_runs)
+    alpha, reps, outside, total = 0.05, 8, 0, 0
+    for _ in range(reps):
+        r = rng.standard_normal((n_runs, n_gps, 2)) * np.array([1.0, 0.04])   # any scale per component
+        fake = replace(mc, residual_moment=np.einsum("nia,nmb->iamb", r, r) / n_runs)
+        stat, _, lo, hi = fake.bands(alpha)["residual_independence"]
+        outside += np.count_nonzero((stat < lo) | (stat > hi))
+        total += stat.size
+    # given r_i, the correlations of fix i with the other fixes are independent and have the same law:
+    # the indicators are pairwise independent, so the share has the binomial standard deviation
+    share, sd = outside / total, np.sqrt(alpha * (1 - alpha) / total)
+    assert abs(share - alpha) < 4 * sd, (share, sd)
+    for level in (alpha, alpha / 7 / stat.size):
+        half = fake.bands(level)["residual_independence"][3].max()
+        exact = np.sqrt(stats.beta.ppf(1 - level, 0.5, (n_runs - 1) / 2))
+        assert np.isclose(half, exact, rtol=1e-9), (level, half, exact)

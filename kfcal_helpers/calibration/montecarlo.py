@@ -1,4 +1,4 @@
-"""Monte Carlo validation of the calibration filter (six checks at the GPS fixes, and one between them).
+"""Monte Carlo validation of the calibration filter (seven checks at the GPS fixes, and one between them).
 
 Realizations are simulated in chunks of :data:`CHUNK_SIZE` (the 200 Hz arrays of a
 chunk are dropped once the chunk is filtered), and only sums over realizations
@@ -9,15 +9,18 @@ prior error ``e_bar = dx - dx_hat_prior``, residual ``r = dz - H dx_hat_prior``.
 The checks, each judged against its own sampling band at significance
 ``alpha`` (z = ``norm.ppf(1 - alpha/2)``, 1.96 for alpha = 0.05):
 
-1. ``mean_error``: ensemble mean of ``e`` against ``+-z s/sqrt(N)`` (s: ensemble std).
+1. ``mean_error``: ensemble mean of ``e`` against ``+-t_{N-1}(1 - alpha/2) s/sqrt(N)`` (s: ensemble std).
 2. ``covariance``: ensemble covariance of ``e`` against the filter's ``P``; variances
    against the chi-square interval ``P chi2_{N-1}(alpha/2, 1-alpha/2)/(N-1)``,
    correlations against the filter's, with Fisher's ``tanh(atanh(rho_P) +- z/sqrt(N-3))``.
 3. ``orthogonality``: ``(1/N) sum (e - e_mean) dx_hat^T`` against
-   ``+-z sqrt(P_kk mean(dx_hat_l^2)/N)`` (the spread of a product of independent factors).
+   ``+-z sqrt(P_kk mean(dx_hat_l^2)/N)`` (the spread of a product of independent factors; slightly
+   conservative, as the exact spread has the centred ``mean((dx_hat_l - mean dx_hat)^2) <= mean(dx_hat_l^2)``).
 4. ``residual_independence``: the correlation ``sum r_i,a r_m,b / sqrt(sum r_i,a^2 sum r_m,b^2)``
-   for every pair of fixes ``i < m`` against ``+-q/sqrt(N + q^2)``, ``q = t_N(1 - alpha/2)``
-   (exact for independent Gaussian residuals).
+   for every pair of fixes ``i < m`` against ``+-q/sqrt(N - 1 + q^2)``, ``q = t_{N-1}(1 - alpha/2)``
+   (exact for independent zero-mean Gaussian residuals: the correlation is the cosine of the
+   angle between two vectors in R^N, and ``rho sqrt((N - 1)/(1 - rho^2))`` is Student-t with N - 1
+   degrees of freedom).
 5. ``residual_variance``: ``(1/N) sum r_i r_i^T`` diagonal against ``S_i chi2_N/N``.
 6. ``nees``: run-averaged ``e^T P^-1 e`` against ``chi2_{3N}/N`` bounds.
 7. ``nis``: run-averaged ``r^T S^-1 r`` against ``chi2_{2N}/N`` bounds.
@@ -32,7 +35,8 @@ Between fixes (``run_monte_carlo(..., between_fixes=True)``): the error at every
 (memory independent of N), and :meth:`MonteCarloResult.between_fixes_check` compares
 its ensemble variance at every sample with the filter's ``P_kk(t_j)`` against the
 chi-square interval ``P_kk chi2_{N-1}(level/2, 1-level/2)/(N-1)`` (its own family of
-entries: the seven checks above are not changed by it).
+entries at ``alpha``: the seven checks above are not changed by it, and over all eight checks a
+consistent filter fails somewhere with probability at most ``2 alpha``).
 """
 
 from __future__ import annotations
@@ -155,11 +159,12 @@ class MonteCarloResult:
         M = self.residual_moment[ok][:, :, ok, :]
         Sd = np.einsum("iaa->ia", self.S[ok])
         i, m = np.triu_indices(M.shape[0], k=1)
-        # uncentred correlation of two independent zero-mean Gaussians: t = rho sqrt(N / (1 - rho^2)) ~ t_N
+        # uncentred correlation of two independent zero-mean Gaussians (the cosine of the angle between
+        # two vectors in R^N): t = rho sqrt((N - 1) / (1 - rho^2)) ~ t_{N-1}
         Md = np.einsum("iaia->ia", M)
         rho = M[i, :, m, :] / np.sqrt(Md[i][:, :, None] * Md[m][:, None, :])
-        q = stats.t.ppf(1 - level / 2, N)
-        half = np.full_like(rho, q / np.sqrt(N + q**2))
+        q = stats.t.ppf(1 - level / 2, N - 1)
+        half = np.full_like(rho, q / np.sqrt(N - 1 + q**2))
         out["residual_independence"] = (rho, 0 * half, -half, half)
         out["residual_variance"] = (np.einsum("iaia->ia", M), Sd, Sd * stats.chi2.ppf(level / 2, N) / N,
                                     Sd * stats.chi2.ppf(1 - level / 2, N) / N)

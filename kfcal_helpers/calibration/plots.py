@@ -12,6 +12,7 @@ from __future__ import annotations
 import matplotlib as mpl
 import matplotlib.pyplot as plt
 import numpy as np
+from scipy import stats
 
 from .filters import FilterResult
 from .montecarlo import MonteCarloResult
@@ -26,7 +27,8 @@ STATE_LABELS = ("position [m]", "velocity [m/s]", "bias [m/s²]")  #: y labels o
 _STATES = (("position", "m"), ("velocity", "m/s"), ("bias", "m/s²"))
 
 #: the panels of :func:`plot_check_panels`, in the order of the checks (notebook 06)
-CHECK_PANELS = ("mean_error", "covariance", "orthogonality", "residual_independence", "nees", "nis")
+CHECK_PANELS = ("mean_error", "covariance", "orthogonality", "residual_independence", "residual_variance", "nees",
+                "nis")
 
 
 def _lw(scale: float = 1.0) -> float:
@@ -102,7 +104,7 @@ def plot_estimate_errors(params: CalibrationParams, true_dx: np.ndarray, result:
 def plot_covariance_sawtooth(params: CalibrationParams, result: FilterResult, t_max: float = 2.0,
                              outages=(), figsize=None):
     """σ of position and velocity at 200 Hz over the first ``t_max`` seconds:
-    growth during the 39 predict-only steps, drop at each update.
+    growth during the 40 predict-only steps between fixes (39 samples strictly between), drop at each update.
 
     outages : time spans (s) to shade; figsize : inches (default 10 x 3.6).
     """
@@ -192,28 +194,55 @@ def _panel_orthogonality(fig, ax, mc, checks):
         ratio = np.where(hi > 0, np.abs(st) / hi, 0.0)
         sim = float(np.nanmax(np.where(hi > 0, shi / hi, np.nan)))
     t = mc.t_gps
+    # the largest of 9 entries: each entry at 1 - (1 - alpha)^(1/9) keeps it inside with probability
+    # at least 1 - alpha (Sidak, for jointly Gaussian entries)
+    a9 = 1 - (1 - mc.alpha) ** (1 / 9)
+    max9 = stats.norm.ppf(1 - a9 / 2) / stats.norm.ppf(1 - mc.alpha / 2)
     _ = ax.plot(t, ratio.max(axis=1), lw=_lw(0.6), color="C0", label="largest of the 9 entries (k, m)")
-    _bands_lines(ax, lambda s: (t, np.ones_like(t)), lambda s: (t, sim * np.ones_like(t)), symmetric=False)
+    _ = ax.plot(t, max9 * np.ones_like(t), color="k", ls="--", lw=_lw(0.7), label="95 % band of the largest of 9")
+    _ = ax.plot(t, sim * np.ones_like(t), color="k", ls="-", lw=_lw(0.7), label="simultaneous band (verdict)")
     ax.set_ylim(bottom=0)
-    ax.set_title("3. |(1/N) Σ (e_k − ē_k) x̂_m| / pointwise half-width")
+    ax.set_title("3. |(1/N) Σ (e_k − ē_k) x̂_m| / 1-entry half-width")
     ax.set_ylabel("normalized [-]")
     ax.set_xlabel("time t [s]")
     _legend_on_top(ax, ncol=2)
 
 
 def _panel_residual_independence(fig, ax, mc, checks):
+    """One pixel per pair of fixes (i, m): the largest of the four component pairs (pp, pv, vp, vv) of
+    the check's |rho|, over the simultaneous half-width; the diagonal (i = m, not judged) is blank."""
     t = mc.t_gps
-    rho = mc.residual_correlation()
     c = checks["residual_independence"]
     half = float(c.sim_upper[0])  # the same simultaneous half-width for every pair
-    cmap = mpl.colormaps["viridis"].with_extremes(over="red")
-    im = ax.imshow(np.abs(rho - np.diag(np.diag(rho))) / half, vmin=0, vmax=1, cmap=cmap,
-                   extent=(0, t[-1], t[-1], 0))
-    fig.colorbar(im, ax=ax, extend="max", label="|ρ| / simultaneous band (red: outside)")
-    ax.set_title("4. residual correlations, all pairs of fixes")
+    fixes = np.flatnonzero(~mc.missing)
+    i, m = np.triu_indices(len(fixes), k=1)  # the order of the check's pairs
+    worst = np.abs(c.statistic).reshape(len(i), 4).max(axis=1) / half
+    image = np.full((len(t), len(t)), np.nan)
+    image[fixes[i], fixes[m]] = worst
+    image[fixes[m], fixes[i]] = worst
+    cmap = mpl.colormaps["viridis"].with_extremes(over="red", bad="white")
+    im = ax.imshow(image, vmin=0, vmax=1, cmap=cmap, extent=(0, t[-1], t[-1], 0))
+    cbar = fig.colorbar(im, ax=ax, extend="max", shrink=0.85)
+    cbar.set_label("max |ρ| / simult. band", fontsize="small")
+    ax.set_title("4a. residual correlations, pairs of fixes\n(largest of pp, pv, vp, vv; red: outside)")
     ax.set_xlabel("fix time [s]")
     ax.set_ylabel("fix time [s]")
     ax.grid(False)
+
+
+def _panel_residual_variance(fig, ax, mc, checks):
+    c = checks["residual_variance"]
+    t = mc.t_gps[~mc.missing]
+    st, ex, lo, hi, slo, shi = (a.reshape(len(t), 2) for a in (c.statistic, c.expected, c.lower, c.upper,
+                                                               c.sim_lower, c.sim_upper))
+    for k, name in ((0, "p"), (1, "v")):
+        _ = ax.plot(t, st[:, k] / ex[:, k], lw=_lw(0.6), label=f"residual {name}")
+    _bands_lines(ax, lambda s: (t, (hi if s > 0 else lo)[:, 0] / ex[:, 0]),
+                 lambda s: (t, (shi if s > 0 else slo)[:, 0] / ex[:, 0]))
+    ax.set_title("4b. (1/N) Σ r² / S (residual variance)")
+    ax.set_ylabel("ratio [-]")
+    ax.set_xlabel("time t [s]")
+    _legend_on_top(ax, ncol=2)
 
 
 def _panel_chi2(ax, mc, checks, name):
@@ -236,6 +265,7 @@ _PANELS = {
     "covariance": _panel_covariance,
     "orthogonality": _panel_orthogonality,
     "residual_independence": _panel_residual_independence,
+    "residual_variance": _panel_residual_variance,
     "nees": lambda fig, ax, mc, checks: _panel_chi2(ax, mc, checks, "nees"),
     "nis": lambda fig, ax, mc, checks: _panel_chi2(ax, mc, checks, "nis"),
 }
@@ -244,7 +274,7 @@ _PANELS = {
 def plot_check_panels(mc: MonteCarloResult, panels=CHECK_PANELS, ncols: int = 2, figsize=None,
                       title: str | None = None):
     """Some of the Monte Carlo checks at the fixes, each against its pointwise band (dashed) and
-    the simultaneous band of the verdict (solid; panel 4: colour scale up to it, red beyond).
+    the simultaneous band of the verdict (solid; panel 4a: colour scale up to it, red beyond).
 
     panels : names from :data:`CHECK_PANELS`; ncols : panels per row;
     figsize : inches (default 5.5 per column x 3 per row); title : default names N.
@@ -271,9 +301,9 @@ def plot_check_panels(mc: MonteCarloResult, panels=CHECK_PANELS, ncols: int = 2,
 
 
 def plot_checks(mc: MonteCarloResult, figsize=None):
-    """The six Monte Carlo checks at the fixes, each against its pointwise and simultaneous bands
-    (default 11 x 9 in)."""
-    return plot_check_panels(mc, CHECK_PANELS, ncols=2, figsize=figsize or (11, 9))
+    """The seven Monte Carlo checks at the fixes, each against its pointwise and simultaneous bands
+    (default 11 x 12 in)."""
+    return plot_check_panels(mc, CHECK_PANELS, ncols=2, figsize=figsize or (11, 12))
 
 
 def plot_ensemble_sigma(mc: MonteCarloResult, figsize=None, title: str | None = None):
