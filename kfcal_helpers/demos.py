@@ -389,6 +389,7 @@ class CalibrationDemoFigure:
             raise ValueError(f"demo must be a CalibrationDemo, got {type(demo).__name__}")
         p = demo.params
         late, late_fix = demo.t >= self.t_zoom, demo.t_gps >= self.t_zoom
+        zoom = f"; y zoomed past t = {self.t_zoom:g} s" if late_fix.any() and self.t_zoom > demo.t[0] else ""
         if not late_fix.any():
             late, late_fix = np.ones_like(late), np.ones_like(late_fix)
         for span in self.spans:
@@ -413,7 +414,8 @@ class CalibrationDemoFigure:
         self.axes[0].set_title(f"Errors with ±2σ: GPS {p.gps_rate:g} Hz, W {p.W:.1e} (m/s²)², GPS σ_p "
                                f"{np.sqrt(p.gps_pos_var):.2g} m, bias σ₀ {np.sqrt(p.bias_var):.2g} m/s²{gap}",
                                fontsize=10, fontweight="normal")
-        self.axes[-1].set_title(f"s/σ inside [{lo:.3f}, {hi:.3f}] at {100 * demo.inside_fraction:.1f} % of fixes",
+        self.axes[-1].set_title(f"s/σ inside [{lo:.3f}, {hi:.3f}] at {100 * demo.inside_fraction:.1f} % "
+                                f"of (fix, state) pairs{zoom}",
                                 fontsize=9, fontweight="normal")
         return self.fig
 
