@@ -71,9 +71,9 @@ def run_cli(*args):
 
 
 @pytest.mark.parametrize("args, word", [
-    (["--runs", "1"], "--runs"), (["--gps-rate", "3"], "gps_rate"), (["--duration", "-1"], "duration"),
-    (["--omega", "nan"], "omega"), (["--imu-rate", "0"], "imu_rate"), (["--engine", "gpu"], "engine"),
-    (["--runs", "ten"], "--runs"), (["--truth", "rk4"], "truth"),
+    (["--runs", "1"], "--runs"), (["--gps-rate", "3"], "--gps-rate"), (["--duration", "-1"], "--duration"),
+    (["--omega", "nan"], "--omega"), (["--imu-rate", "0"], "--imu-rate"), (["--engine", "gpu"], "--engine"),
+    (["--runs", "ten"], "--runs"), (["--truth", "rk4"], "--truth"),
 ])
 def test_cli_bad_input_one_line_exit_2(args, word):
     r = run_cli(*args)
@@ -94,7 +94,7 @@ def test_cli_json(tmp_path):
         assert 0.0 <= d["checks"][name]["inside_fraction"] <= 1.0
     assert len(d["checks"]["nees"]["bounds"]) == 2 and len(d["checks"]["nis"]["bounds"]) == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "calibration_checks.png", "calibration_errors.png", "calibration_sigma_sawtooth.png"]
+        "calib_checks.png", "calib_errors.png", "calib_sigma_sawtooth.png"]
 
 
 def test_cli_table_in_process(capsys):

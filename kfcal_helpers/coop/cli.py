@@ -15,13 +15,13 @@ course log need not follow the Qtrue it ships with.
 
 from __future__ import annotations
 
-import json
 import time
 
 import numpy as np
 
 from ..consistency import chi2_bounds
-from ..validation import require_int, require_positive
+from ..cli import dumps_json
+from ..validation import MAX_SEED, cli_float, cli_int, require_int, require_positive
 from .data import load_log
 from .filters import FILTERS, TUNED_Q_SCALE, run_filter, tune_q_scale
 from .model import N_MEAS, CoopParams
@@ -34,15 +34,22 @@ __all__ = ["add_parser", "run", "log_summary", "Q_SCALE_LADDER", "parse_q_scale"
 Q_SCALE_LADDER = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0)
 
 
+#: the range of a given --q-scale (beyond it the filters' covariances lose precision)
+Q_SCALE_RANGE = (1e-6, 1e6)
+
+
 def parse_q_scale(text):
-    """``None`` (the default), ``"auto"`` or a positive float; raise ValueError otherwise."""
+    """``None`` (the default), ``"auto"`` or a number in Q_SCALE_RANGE; raise ValueError otherwise."""
     if text is None or text == "auto":
         return text
     try:
         value = float(text)
     except (TypeError, ValueError):
-        raise ValueError(f"q-scale must be a positive number or 'auto', got {text!r}") from None
-    return require_positive("q-scale", value)
+        raise ValueError(f"--q-scale must be a positive number or 'auto', got {text!r}") from None
+    value = require_positive("--q-scale", value)
+    if not Q_SCALE_RANGE[0] <= value <= Q_SCALE_RANGE[1]:
+        raise ValueError(f"--q-scale must be from {Q_SCALE_RANGE[0]:g} to {Q_SCALE_RANGE[1]:g} or 'auto', got {text}")
+    return value
 
 
 def add_parser(subparsers):
@@ -51,14 +58,14 @@ def add_parser(subparsers):
                               description=__doc__.splitlines()[0])
     p.add_argument("--filter", choices=FILTERS, default="ekf", help="which filter (default ekf)")
     p.add_argument("--log", metavar="PATH", help="course log: a folder of CSVs or a .mat (default: the generated log)")
-    p.add_argument("--runs", type=int, metavar="N", help="run an N-run truth-model Monte Carlo instead of a log")
-    p.add_argument("--seed", type=int, default=None,
+    p.add_argument("--runs", type=cli_int(1, 10000), metavar="N", help="run an N-run truth-model Monte Carlo instead of a log (1 to 10000)")
+    p.add_argument("--seed", type=cli_int(0, MAX_SEED), default=None,
                    help=f"seed of the generated log (default {DEFAULT_LOG_SEED}) or of the Monte Carlo (default 0)")
     p.add_argument("--q-scale", default=None, metavar="S",
                    help="filter Q = S * Qtrue: a positive number, or 'auto' to tune S by NIS on the log "
                         "(default: auto for --log, else the filter's truth-model-tuned scale)")
-    p.add_argument("--every", type=int, default=1, metavar="M", help="use the measurements of every M-th step only")
-    p.add_argument("--alpha", type=float, default=0.05, help="significance of the chi-square tests (default 0.05)")
+    p.add_argument("--every", type=cli_int(1), default=1, metavar="M", help="use the measurements of every M-th step only")
+    p.add_argument("--alpha", type=cli_float(0, 0.5), default=0.05, help="significance of the chi-square tests (default 0.05)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(run=run)
     return p
@@ -97,7 +104,7 @@ def run(args) -> int:
         out["q_scale_source"] = "truth-model tuning" if q_scale is None else "given"
     else:
         if args.log is not None:
-            log = load_log(args.log)
+            log = load_log(args.log, argname="--log")
         else:
             log = generate_log(seed=DEFAULT_LOG_SEED if args.seed is None else args.seed)
         if every > 1:
@@ -119,7 +126,7 @@ def run(args) -> int:
                "every": every, **log_summary(result, args.alpha)}
     out["seconds"] = time.perf_counter() - t0
     if args.json:
-        print(json.dumps(out))
+        print(dumps_json(out))
     else:
         width = max(len(k) for k in out)
         for key, value in out.items():
