@@ -24,7 +24,9 @@ import json
 import math
 import os
 import re
+import signal
 import sys
+import threading
 import warnings
 
 __all__ = ["main", "OneLineParser", "dumps_json", "EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_BROKEN_PIPE"]
@@ -107,8 +109,50 @@ def _quiet_stdout() -> None:
         pass
 
 
+#: temporary files being written (see kfcal_helpers.figures.save_atomic), removed on Ctrl-C
+PARTIAL_FILES: set = set()
+
+
+def _remove_partial_files() -> None:
+    for path in list(PARTIAL_FILES):
+        try:
+            os.unlink(path)
+        except OSError:
+            pass
+
+
+def _install_sigint(state: dict):
+    """While the command runs in the main thread, Ctrl-C prints one line, removes the temporary file
+    being written and ends the process with status 130 at once: a KeyboardInterrupt raised inside a
+    library callback could otherwise be swallowed ("Exception ignored in ...") and the work go on.
+    Returns the previous handler (None if none was installed)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is not signal.default_int_handler:  # someone else (a notebook kernel, a test) handles it
+        return None
+
+    def on_sigint(signum, frame):
+        _error_line(f"{state['command']}: interrupted")
+        _remove_partial_files()
+        os._exit(EXIT_INTERRUPTED)
+
+    signal.signal(signal.SIGINT, on_sigint)
+    return previous
+
+
 def main(argv=None) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``), run the sub-command, return the exit status."""
+    state = {"command": PROG}
+    previous = _install_sigint(state)
+    try:
+        return _main(argv, state)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _main(argv, state: dict) -> int:
     command = PROG
     try:
         parser = _build_parser()
@@ -116,12 +160,13 @@ def main(argv=None) -> int:
             args = parser.parse_args(argv)
         except SystemExit as exc:  # argparse: --help (0) or a usage error (2, already printed)
             return exc.code if isinstance(exc.code, int) else EXIT_USAGE
-        command = f"{PROG} {args.command}"
+        command = state["command"] = f"{PROG} {args.command}"
         with warnings.catch_warnings():
             # a numerical warning would mean NaN or infinity in the output: stop with one line instead
             warnings.simplefilter("error", RuntimeWarning)
             return int(args.run(args) or 0)
     except KeyboardInterrupt:
+        _remove_partial_files()
         _error_line(f"{command}: interrupted")
         return EXIT_INTERRUPTED
     except BrokenPipeError:

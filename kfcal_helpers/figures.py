@@ -379,14 +379,18 @@ def save_atomic(fig, out: Path, fmt: str, dpi: float, argname: str = "directory"
     """Save ``fig`` to ``out`` under a temporary name in the same directory, then rename it, so an
     interrupted or failed save leaves no partial file (ValueError naming ``argname`` if the file
     cannot be written)."""
+    from .cli import PARTIAL_FILES
+
     out = Path(out)
     tmp = out.with_name(f".{out.name}.{os.getpid()}.part")
+    PARTIAL_FILES.add(str(tmp))  # removed by the command line's Ctrl-C handler
     try:
         fig.savefig(tmp, format=fmt, dpi=dpi)
         os.replace(tmp, out)
     except OSError as exc:
         raise ValueError(f"{argname}: cannot write {str(out)!r}: {exc.strerror or exc}") from None
     finally:
+        PARTIAL_FILES.discard(str(tmp))
         if tmp.exists():
             try:
                 tmp.unlink()

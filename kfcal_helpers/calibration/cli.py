@@ -25,6 +25,9 @@ COLUMNS_LEGEND = (
 MISMATCH_NOTE = (
     "FAIL rows are the intended model-mismatch demonstration: --truth analytic simulates the exact "
     "kinematics, which the filter's Euler model does not match (notebook 07)")
+#: bytes the --figures drawing needs on top of the Monte Carlo's result: matplotlib, and per GPS fix
+#: squared for the check panels (measured, rounded up)
+FIGURES_BYTES, FIGURES_BYTES_PER_FIX2 = 60e6, 80.0
 #: CalibrationParams field -> its option, for error messages
 _FLAGS = {"omega": "--omega", "imu_rate": "--imu-rate", "gps_rate": "--gps-rate", "duration": "--duration"}
 
@@ -151,7 +154,8 @@ def run(args) -> int:
     params = _params(args)
     # before anything of the scenario's size is allocated: refuse what cannot fit or would take hours
     estimate_run(params, args.runs, args.engine, runs_name="--runs",
-                 params_name="--duration, --imu-rate, --gps-rate")
+                 params_name="--duration, --imu-rate, --gps-rate" + (", --figures" if args.figures else ""),
+                 extra_bytes=FIGURES_BYTES + FIGURES_BYTES_PER_FIX2 * params.n_gps**2 if args.figures else 0.0)
     windows = [parse_outage(text, "--outage") for text in args.outage]
     missing = outage_mask(params, windows, name="--outage") if windows else None
     if missing is not None and (~missing).sum() < 2:

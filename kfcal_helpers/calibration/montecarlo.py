@@ -252,12 +252,14 @@ def chunk_size(params: CalibrationParams) -> int:
 
 
 def estimate_run(params: CalibrationParams, n_runs: int, engine: str = "batch",
-                 runs_name: str = "n_runs", params_name: str = "params") -> tuple[float, float]:
+                 runs_name: str = "n_runs", params_name: str = "params",
+                 extra_bytes: float = 0.0) -> tuple[float, float]:
     """Estimated ``(peak bytes, seconds)`` of :func:`run_monte_carlo`; ValueError, with the
     estimate, when the peak exceeds :data:`MEMORY_LIMIT` (the scenario has too many IMU samples
     or GPS fixes) or the time exceeds :data:`MAX_SECONDS` (``runs_name`` and ``params_name`` name
-    the arguments in the message)."""
-    peak = _fixed_bytes(params) + min(n_runs, chunk_size(params)) * _realization_bytes(params)
+    the arguments in the message).  ``extra_bytes``: what the caller needs after the Monte Carlo,
+    while its result is alive (the command line's figures)."""
+    peak = _fixed_bytes(params) + max(min(n_runs, chunk_size(params)) * _realization_bytes(params), extra_bytes)
     if peak > MEMORY_LIMIT:
         raise ValueError(
             f"{params_name}: one realization of {params.n_imu} IMU samples and {params.n_gps} GPS fixes needs about "
