@@ -143,7 +143,10 @@ def _install_sigint(state: dict):
 
 def main(argv=None) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``), run the sub-command, return the exit status."""
-    state = {"command": PROG}
+    words = sys.argv[1:] if argv is None else list(argv)
+    # the command's name before the (slow) imports of argument parsing, for a Ctrl-C during them
+    known = words[0] if words and words[0] in ("calibrate", "coop", "figures") else None
+    state = {"command": f"{PROG} {known}" if known else PROG}
     previous = _install_sigint(state)
     try:
         return _main(argv, state)
@@ -153,7 +156,7 @@ def main(argv=None) -> int:
 
 
 def _main(argv, state: dict) -> int:
-    command = PROG
+    command = state["command"]
     try:
         parser = _build_parser()
         try:
@@ -164,7 +167,9 @@ def _main(argv, state: dict) -> int:
         with warnings.catch_warnings():
             # a numerical warning would mean NaN or infinity in the output: stop with one line instead
             warnings.simplefilter("error", RuntimeWarning)
-            return int(args.run(args) or 0)
+            code = int(args.run(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's final flush
+        return code
     except KeyboardInterrupt:
         _remove_partial_files()
         _error_line(f"{command}: interrupted")
