@@ -36,7 +36,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     d = CalibrationParams()
     p = subparsers.add_parser("calibrate", help="Monte Carlo of the accelerometer-calibration filter",
                               description="Simulate, filter and check the accelerometer calibration "
-                                          "(SPEC defaults unless given).")
+                                          "(the course's default scenario unless given).")
     p.add_argument("--runs", type=cli_int(2), default=1000,
                    help="realizations, at least 2 (default 1000); runs estimated to need more than 500 MB "
                         "or 1 h are refused")
