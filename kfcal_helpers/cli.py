@@ -1,24 +1,78 @@
-"""Command line: ``python -m kfcal_helpers <command> [options]``.
+"""Command line: python -m kfcal_helpers COMMAND [options].
 
 Each problem registers its sub-command through two functions in its own
 ``cli`` module: ``add_parser(subparsers)`` and ``run(args) -> int``; the lecture
-figures of both problems (``figures``) are registered from :mod:`kfcal_helpers.figures`.  Any
-``ValueError`` (bad input) becomes one line on stderr and exit status 2.
+figures of both problems (``figures``) are registered from :mod:`kfcal_helpers.figures`.
+
+Whatever a user types, the command ends in one of these ways, never in a traceback:
+
+* exit 0 -- done;
+* exit 2 -- bad input: one line ``python -m kfcal_helpers COMMAND: error: ...`` on stderr naming the
+  option in its command-line spelling and what is allowed (argparse errors, every ``ValueError`` of
+  the library, an unreadable or unwritable file, not enough memory);
+* exit 130 -- interrupted (Ctrl-C): one line ``...: interrupted`` on stderr;
+* exit 141 -- stdout was closed (e.g. ``| head -1``): nothing more is printed.
+
+Output files are written under a temporary name and renamed when complete, so an interrupted
+command leaves no partial file behind.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
+import os
+import re
+import signal
 import sys
+import threading
+import warnings
 
-__all__ = ["main", "OneLineParser"]
+__all__ = ["main", "OneLineParser", "dumps_json", "EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_BROKEN_PIPE"]
+
+EXIT_USAGE = 2  #: bad input
+EXIT_INTERRUPTED = 130  #: Ctrl-C (128 + SIGINT)
+EXIT_BROKEN_PIPE = 141  #: stdout closed (128 + SIGPIPE)
+
+PROG = "python -m kfcal_helpers"
+
+# values that start with "-" but are not options: negative numbers (also 1e5 form), -inf, -nan,
+# and outage windows such as -5:3, so that "--omega -inf" and "--outage -5:3" reach the checks
+_NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
 
 
 class OneLineParser(argparse.ArgumentParser):
-    """An ArgumentParser whose usage errors are one line on stderr, exit status 2."""
+    """An ArgumentParser whose usage errors are one line on stderr, exit status 2, that takes
+    values starting with ``-`` (``-5:3``, ``-1e5``, ``-inf``) as option values, and whose help
+    shows plain text."""
 
     def error(self, message):  # noqa: D401 - argparse API
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        message = " ".join(str(message).split())
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+    def _parse_optional(self, arg_string):
+        if _NEGATIVE_VALUE.match(arg_string):
+            return None
+        return super()._parse_optional(arg_string)
+
+    def format_help(self):
+        return super().format_help().replace("``", "")
+
+
+def _strict(value):
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_strict(v) for v in value]
+    return value
+
+
+def dumps_json(obj) -> str:
+    """``obj`` as strict JSON (``allow_nan=False``): a non-finite float (NaN, infinity) becomes null."""
+    return json.dumps(_strict(obj), allow_nan=False)
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -26,7 +80,7 @@ def _build_parser() -> argparse.ArgumentParser:
     from .calibration import cli as calibration_cli
     from .coop import cli as coop_cli
 
-    parser = OneLineParser(prog="python -m kfcal_helpers", description=__doc__.splitlines()[0])
+    parser = OneLineParser(prog=PROG, description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     calibration_cli.add_parser(sub)
     coop_cli.add_parser(sub)
@@ -34,12 +88,112 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv=None) -> int:
-    parser = _build_parser()
-    args = parser.parse_args(argv)
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return text or type(exc).__name__
+
+
+def _os_error(exc: OSError) -> str:
+    what = exc.strerror or _one_line(exc)
+    name = exc.filename if exc.filename is not None else None
+    return f"{name}: {what}" if name is not None else what
+
+
+def _quiet_stdout() -> None:
+    """After a closed pipe: send what is left on stdout to /dev/null, so the interpreter's final
+    flush raises nothing."""
     try:
-        return int(args.run(args) or 0)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+#: temporary files being written (see kfcal_helpers.figures.save_atomic), removed on Ctrl-C
+PARTIAL_FILES: set = set()
+
+
+def _remove_partial_files() -> None:
+    for path in list(PARTIAL_FILES):
+        try:
+            os.unlink(path)
+        except OSError:
+            pass
+
+
+def _install_sigint(state: dict):
+    """While the command runs in the main thread, Ctrl-C prints one line, removes the temporary file
+    being written and ends the process with status 130 at once: a KeyboardInterrupt raised inside a
+    library callback could otherwise be swallowed ("Exception ignored in ...") and the work go on.
+    Returns the previous handler (None if none was installed)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is not signal.default_int_handler:  # someone else (a notebook kernel, a test) handles it
+        return None
+
+    def on_sigint(signum, frame):
+        _error_line(f"{state['command']}: interrupted")
+        _remove_partial_files()
+        os._exit(EXIT_INTERRUPTED)
+
+    signal.signal(signal.SIGINT, on_sigint)
+    return previous
+
+
+def main(argv=None) -> int:
+    """Parse ``argv`` (default ``sys.argv[1:]``), run the sub-command, return the exit status."""
+    words = sys.argv[1:] if argv is None else list(argv)
+    # the command's name before the (slow) imports of argument parsing, for a Ctrl-C during them
+    known = words[0] if words and words[0] in ("calibrate", "coop", "figures") else None
+    state = {"command": f"{PROG} {known}" if known else PROG}
+    previous = _install_sigint(state)
+    try:
+        return _main(argv, state)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _main(argv, state: dict) -> int:
+    command = state["command"]
+    try:
+        parser = _build_parser()
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # argparse: --help (0) or a usage error (2, already printed)
+            return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+        command = state["command"] = f"{PROG} {args.command}"
+        with warnings.catch_warnings():
+            # a numerical warning would mean NaN or infinity in the output: stop with one line instead
+            warnings.simplefilter("error", RuntimeWarning)
+            code = int(args.run(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's final flush
+        return code
+    except KeyboardInterrupt:
+        _remove_partial_files()
+        _error_line(f"{command}: interrupted")
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        _quiet_stdout()
+        return EXIT_BROKEN_PIPE
     except ValueError as exc:
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        print(f"{parser.prog} {args.command}: error: {msg}", file=sys.stderr)
-        return 2
+        _error_line(f"{command}: error: {_one_line(exc)}")
+        return EXIT_USAGE
+    except RuntimeWarning as exc:
+        _error_line(f"{command}: error: numerical failure ({_one_line(exc)}); the inputs are outside "
+                    f"the range this command handles")
+        return EXIT_USAGE
+    except MemoryError:
+        _error_line(f"{command}: error: not enough memory for this run; use fewer or shorter realizations")
+        return EXIT_USAGE
+    except OSError as exc:
+        _error_line(f"{command}: error: {_os_error(exc)}")
+        return EXIT_USAGE
+
+
+def _error_line(text: str) -> None:
+    try:
+        print(text, file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass

@@ -59,6 +59,10 @@ def normalized_squares(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
     Returns
     -------
     array (...,) of the normalized squared errors (dimensionless).
+
+    Raises
+    ------
+    ValueError if the shapes do not match, an entry is not finite, or a covariance is singular.
     """
     err = np.asarray(err, dtype=float)
     cov = np.asarray(cov, dtype=float)
@@ -66,7 +70,12 @@ def normalized_squares(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
         raise ValueError(
             f"err must have shape (..., n) and cov (..., n, n) with the same n; got {err.shape} and {cov.shape}"
         )
-    sol = np.linalg.solve(cov, err[..., None])[..., 0]
+    if not (np.all(np.isfinite(err)) and np.all(np.isfinite(cov))):
+        raise ValueError("err and cov must hold only finite numbers")
+    try:
+        sol = np.linalg.solve(cov, err[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        raise ValueError("cov must be non-singular (positive definite)") from None
     return np.einsum("...i,...i->...", err, sol)
 
 

@@ -17,6 +17,7 @@ and every figure is closed after saving.
 
 from __future__ import annotations
 
+import os
 import sys
 from functools import cached_property
 from pathlib import Path
@@ -28,7 +29,7 @@ from .style import SLIDE_DPI, style_params
 from .validation import require_choice, require_int
 
 __all__ = ["CALIBRATION_RUNS", "COOP_RUNS", "OUTAGE_WINDOWS", "FIGURES", "LectureFigure", "CalibrationCase",
-           "CoopCase", "FigureData", "calibration_realization", "check_directory", "save_figures", "write_figures",
+           "CoopCase", "FigureData", "calibration_realization", "check_directory", "save_atomic", "save_figures", "write_figures",
            "use_agg_backend", "add_parser", "run"]
 
 CALIBRATION_RUNS = 1000  #: realizations of the calibration Monte Carlo (batch engine)
@@ -357,13 +358,45 @@ _BY_NAME = {f.name: f for f in FIGURES}
 # Writing
 def check_directory(directory, argname: str = "directory") -> Path:
     """``directory`` as a Path; ValueError naming ``argname`` unless it is a non-empty path that is
-    not an existing file (it may exist as a directory, or not exist yet)."""
+    an existing writable directory, or can be created (its nearest existing ancestor is a writable
+    directory).  Nothing is created here: the callers check before their long work starts."""
     if isinstance(directory, bool) or not isinstance(directory, (str, Path)) or str(directory) == "":
         raise ValueError(f"{argname} must be a directory path, got {directory!r}")
     path = Path(directory)
     if path.exists() and not path.is_dir():
         raise ValueError(f"{argname} must be a directory (existing or to create), got the existing file {str(path)!r}")
+    existing = path.absolute()
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ValueError(f"{argname}: cannot create {str(path)!r}, {str(existing)!r} is a file")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"{argname}: cannot write into {str(existing)!r} (permission denied)")
     return path
+
+
+def save_atomic(fig, out: Path, fmt: str, dpi: float, argname: str = "directory") -> Path:
+    """Save ``fig`` to ``out`` under a temporary name in the same directory, then rename it, so an
+    interrupted or failed save leaves no partial file (ValueError naming ``argname`` if the file
+    cannot be written)."""
+    from .cli import PARTIAL_FILES
+
+    out = Path(out)
+    tmp = out.with_name(f".{out.name}.{os.getpid()}.part")
+    PARTIAL_FILES.add(str(tmp))  # removed by the command line's Ctrl-C handler
+    try:
+        fig.savefig(tmp, format=fmt, dpi=dpi)
+        os.replace(tmp, out)
+    except OSError as exc:
+        raise ValueError(f"{argname}: cannot write {str(out)!r}: {exc.strerror or exc}") from None
+    finally:
+        PARTIAL_FILES.discard(str(tmp))
+        if tmp.exists():
+            try:
+                tmp.unlink()
+            except OSError:
+                pass
+    return out
 
 
 def _select(names, argname: str) -> tuple:
@@ -405,9 +438,7 @@ def save_figures(figures, directory, data: FigureData | None = None, svg: bool =
             fig = entry.make(data)
             try:
                 for fmt in formats:
-                    out = path / f"{entry.name}.{fmt}"
-                    fig.savefig(out, format=fmt, dpi=SLIDE_DPI)
-                    written.append(out)
+                    written.append(save_atomic(fig, path / f"{entry.name}.{fmt}", fmt, SLIDE_DPI, argname))
             finally:
                 plt.close(fig)
     return written

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["progress_enabled", "progress"]
+__all__ = ["progress_enabled", "progress", "progress_bar"]
 
 
 def progress_enabled() -> bool:
@@ -29,3 +29,26 @@ def progress(iterable, total: int | None = None, desc: str | None = None, enable
     from tqdm.auto import tqdm
 
     return tqdm(iterable, total=total, desc=desc, leave=False)
+
+
+class _NoBar:
+    """The interface of a tqdm bar that shows nothing."""
+
+    def update(self, n=1):
+        pass
+
+    def close(self):
+        pass
+
+
+def progress_bar(total: int, desc: str | None = None, enabled: bool | None = None):
+    """A tqdm bar over ``total`` items that the caller moves with ``update(n)`` and ends with
+    ``close()``, or an object with the same two methods that shows nothing when not enabled
+    (``enabled=None`` means :func:`progress_enabled`).  The bar redraws at most every 0.5 s."""
+    if enabled is None:
+        enabled = progress_enabled()
+    if not enabled:
+        return _NoBar()
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=desc, leave=False, mininterval=0.5)

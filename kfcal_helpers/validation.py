@@ -20,7 +20,13 @@ __all__ = [
     "require_choice",
     "require_shape",
     "require_covariance",
+    "require_seed",
+    "cli_int",
+    "cli_float",
 ]
+
+#: the largest seed accepted (numpy.random.default_rng takes any integer >= 0; 2**63 - 1 keeps it an int64)
+MAX_SEED = 2**63 - 1
 
 
 def require_finite(name: str, value) -> float:
@@ -96,3 +102,70 @@ def require_covariance(name: str, matrix, n: int | None = None) -> np.ndarray:
     except np.linalg.LinAlgError:
         raise ValueError(f"{name} must be positive definite") from None
     return arr
+
+
+def require_seed(name: str, value, allow_none: bool = True):
+    """Return ``value`` (an int, or None when ``allow_none``); raise unless it is an integer in
+    [0, 2**63 - 1], the seeds of ``numpy.random.default_rng`` this package accepts."""
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (Integral, np.integer)) or not 0 <= value <= MAX_SEED:
+        none = "None or " if allow_none else ""
+        raise ValueError(f"{name} must be {none}an integer in [0, 2**63 - 1], got {value!r}")
+    return int(value)
+
+
+# ---------------------------------------------------------------------------
+# argparse ``type=`` functions: the error names the option, e.g. "argument --seed: must be ..."
+def cli_int(minimum: int | None = None, maximum: int | None = None):
+    """An argparse ``type`` for an integer option in ``[minimum, maximum]`` (either end open if None)."""
+    import argparse
+
+    if minimum is not None and maximum is not None:
+        allowed = f"an integer from {minimum} to {'2**63 - 1' if maximum == MAX_SEED else maximum}"
+    elif minimum is not None:
+        allowed = f"an integer >= {minimum}"
+    else:
+        allowed = "an integer"
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text.strip().replace("_", ""))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be {allowed}, got {text!r}") from None
+        if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+            shown = text if len(text) <= 30 else text[:27] + "..."
+            raise argparse.ArgumentTypeError(f"must be {allowed}, got {shown}")
+        return value
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def cli_float(lower: float | None = None, upper: float | None = None, lower_open: bool = True,
+              unit: str = ""):
+    """An argparse ``type`` for a finite float option in the interval from ``lower`` (excluded
+    when ``lower_open``) to ``upper`` (included); ``unit`` is shown in the message."""
+    import argparse
+
+    unit_txt = f" {unit}" if unit else ""
+    if lower is not None and upper is not None:
+        allowed = f"a number in {'(' if lower_open else '['}{lower:g}, {upper:g}]{unit_txt}"
+    elif lower is not None:
+        allowed = f"a number {'>' if lower_open else '>='} {lower:g}{unit_txt}"
+    else:
+        allowed = f"a finite number{unit_txt}"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be {allowed}, got {text!r}") from None
+        bad_low = lower is not None and (value <= lower if lower_open else value < lower)
+        bad_high = upper is not None and value > upper
+        if not math.isfinite(value) or bad_low or bad_high:
+            raise argparse.ArgumentTypeError(f"must be {allowed}, got {text}")
+        return value
+
+    parse.__name__ = "number"
+    return parse

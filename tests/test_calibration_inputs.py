@@ -71,9 +71,9 @@ def run_cli(*args):
 
 
 @pytest.mark.parametrize("args, word", [
-    (["--runs", "1"], "--runs"), (["--gps-rate", "3"], "gps_rate"), (["--duration", "-1"], "duration"),
-    (["--omega", "nan"], "omega"), (["--imu-rate", "0"], "imu_rate"), (["--engine", "gpu"], "engine"),
-    (["--runs", "ten"], "--runs"), (["--truth", "rk4"], "truth"),
+    (["--runs", "1"], "--runs"), (["--gps-rate", "3"], "--gps-rate"), (["--duration", "-1"], "--duration"),
+    (["--omega", "nan"], "--omega"), (["--imu-rate", "0"], "--imu-rate"), (["--engine", "gpu"], "--engine"),
+    (["--runs", "ten"], "--runs"), (["--truth", "rk4"], "--truth"),
 ])
 def test_cli_bad_input_one_line_exit_2(args, word):
     r = run_cli(*args)
@@ -94,10 +94,41 @@ def test_cli_json(tmp_path):
         assert 0.0 <= d["checks"][name]["inside_fraction"] <= 1.0
     assert len(d["checks"]["nees"]["bounds"]) == 2 and len(d["checks"]["nis"]["bounds"]) == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "calibration_checks.png", "calibration_errors.png", "calibration_sigma_sawtooth.png"]
+        "calib_checks.png", "calib_errors.png", "calib_sigma_sawtooth.png"]
 
 
 def test_cli_table_in_process(capsys):
     assert main(["calibrate", "--runs", "20", "--engine", "filterpy"]) == 0
     out = capsys.readouterr().out
     assert "nees" in out and "engine filterpy" in out
+
+
+def test_filterpy_progress_moves_every_realization(monkeypatch):
+    """The progress bar counts realizations, so with the filterpy engine (about 0.03 s per realization)
+    it moves well within every second, not once per 500-realization chunk (about 14 s)."""
+    import time
+
+    from kfcal_helpers.calibration import montecarlo
+
+    calls = []
+
+    class Recorder:
+        def __init__(self, total, desc=None, enabled=None):
+            calls.append(("total", total, time.perf_counter()))
+
+        def update(self, n=1):
+            calls.append(("update", n, time.perf_counter()))
+
+        def close(self):
+            calls.append(("close", 0, time.perf_counter()))
+
+    monkeypatch.setattr(montecarlo, "_progress_bar", Recorder)
+    run_monte_carlo(n_runs=12, seed=0, engine="filterpy", progress=True)
+    kinds = [c[0] for c in calls]
+    assert kinds == ["total"] + ["update"] * 12 + ["close"] and calls[0][1] == 12
+    assert all(c[1] == 1 for c in calls[1:-1])
+    gaps = np.diff([c[2] for c in calls[:-1]])
+    assert gaps.max() < 1.0, gaps.max()
+    calls.clear()
+    run_monte_carlo(n_runs=1200, seed=0, engine="batch", progress=True)  # batch: by chunk, in total n_runs
+    assert sum(c[1] for c in calls if c[0] == "update") == 1200

@@ -102,7 +102,7 @@ def _bad_mat(tmp_path, **change):
 
 
 @pytest.mark.parametrize("make_args, match", [
-    (lambda tmp: ["--log", str(tmp / "missing")], "path"),
+    (lambda tmp: ["--log", str(tmp / "missing")], "--log"),
     (lambda tmp: ["--log", _bad_mat(tmp, ydata=np.zeros((3, 11)))], "ydata"),
     (lambda tmp: ["--log", _bad_mat(tmp, Rtrue=None)], "Rtrue"),
     (lambda tmp: ["--log", _bad_mat(tmp, Qtrue=np.eye(6) + np.eye(6, k=1))], "Qtrue must be symmetric"),

@@ -143,8 +143,8 @@ def test_calibrate_figures_draw_the_outage(tmp_path, capsys, monkeypatch):
     d = json.loads(capsys.readouterr().out)
     assert d["outages"] == [[5.0, 10.0]]
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "calibration_checks.png", "calibration_errors.png", "calibration_sigma_sawtooth.png"]
-    assert png_size(tmp_path / "calibration_errors.png") == SLIDE_PX
+        "calib_checks.png", "calib_errors.png", "calib_sigma_sawtooth.png"]
+    assert png_size(tmp_path / "calib_errors.png") == SLIDE_PX
     (case,) = cases
     sim, fr = case.realization  # the realization the figures drew
     assert np.flatnonzero(np.isnan(sim.z[0, :, 0])).tolist() == GAP.tolist()

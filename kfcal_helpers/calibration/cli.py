@@ -3,33 +3,57 @@
 from __future__ import annotations
 
 import argparse
-import json
+import re
 from pathlib import Path
 
-from ..validation import require_int
-from .montecarlo import CHECK_NAMES, ENGINES, format_checks, run_monte_carlo
+from ..validation import MAX_SEED, cli_float, cli_int, require_int
+from .montecarlo import CHECK_NAMES, ENGINES, estimate_run, format_checks, run_monte_carlo
 from .outages import outage_mask, parse_outage
 from .params import CalibrationParams
 from .simulation import TRUTH_MODELS
 
-__all__ = ["add_parser", "run", "result_to_dict", "write_figures", "figure_case", "FIGURE_FILES"]
+__all__ = ["add_parser", "run", "result_to_dict", "write_figures", "figure_case", "FIGURE_FILES", "COLUMNS_LEGEND",
+           "MISMATCH_NOTE"]
+
+#: the lines under the check table that say what its columns mean
+COLUMNS_LEGEND = (
+    "inside: share of the check's entries (fixes, components, pairs) inside their 95% band; "
+    "about 0.95 for a consistent filter\n"
+    "worst:  the largest deviation as a multiple of the simultaneous band (all entries and checks "
+    "together); pass when <= 1, FAIL when > 1")
+#: printed with --truth analytic when a check fails
+MISMATCH_NOTE = (
+    "FAIL rows are the intended model-mismatch demonstration: --truth analytic simulates the exact "
+    "kinematics, which the filter's Euler model does not match (notebook 07)")
+#: bytes the --figures drawing needs on top of the Monte Carlo's result: matplotlib, and per GPS fix
+#: squared for the check panels (measured, rounded up)
+FIGURES_BYTES, FIGURES_BYTES_PER_FIX2 = 60e6, 80.0
+#: CalibrationParams field -> its option, for error messages
+_FLAGS = {"omega": "--omega", "imu_rate": "--imu-rate", "gps_rate": "--gps-rate", "duration": "--duration"}
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     d = CalibrationParams()
     p = subparsers.add_parser("calibrate", help="Monte Carlo of the accelerometer-calibration filter",
                               description="Simulate, filter and check the accelerometer calibration "
-                                          "(SPEC defaults unless given).")
-    p.add_argument("--runs", type=int, default=1000, help="realizations, at least 2 (default 1000)")
-    p.add_argument("--seed", type=int, default=0, help="seed of numpy.random.default_rng (default 0)")
+                                          "(the course's default scenario unless given).")
+    p.add_argument("--runs", type=cli_int(2), default=1000,
+                   help="realizations, at least 2 (default 1000); runs estimated to need more than 500 MB "
+                        "or 1 h are refused")
+    p.add_argument("--seed", type=cli_int(0, MAX_SEED), default=0,
+                   help="seed of numpy.random.default_rng, an integer >= 0 (default 0)")
     p.add_argument("--engine", choices=ENGINES, default="batch", help="batch (fast) or filterpy (one filter per run)")
-    p.add_argument("--omega", type=float, default=d.omega, help=f"rad/s (default {d.omega:g})")
-    p.add_argument("--imu-rate", type=float, default=d.imu_rate, help=f"Hz (default {d.imu_rate:g})")
-    p.add_argument("--gps-rate", type=float, default=d.gps_rate, help=f"Hz, divides the IMU rate (default {d.gps_rate:g})")
-    p.add_argument("--duration", type=float, default=d.duration, help=f"s (default {d.duration:g})")
+    p.add_argument("--omega", type=cli_float(0, unit="rad/s"), default=d.omega,
+                   help=f"rad/s, at most pi * IMU rate (default {d.omega:g})")
+    p.add_argument("--imu-rate", type=cli_float(0, unit="Hz"), default=d.imu_rate, help=f"Hz (default {d.imu_rate:g})")
+    p.add_argument("--gps-rate", type=cli_float(0, unit="Hz"), default=d.gps_rate,
+                   help=f"Hz, divides the IMU rate (default {d.gps_rate:g})")
+    p.add_argument("--duration", type=cli_float(0, unit="s"), default=d.duration,
+                   help=f"s, a whole number of IMU periods (default {d.duration:g})")
     p.add_argument("--truth", choices=TRUTH_MODELS, default="euler", help="truth model (default euler)")
     p.add_argument("--outage", action="append", default=[], metavar="START:END",
-                   help="GPS outage in seconds, fixes with START <= t < END are missing (repeatable)")
+                   help="GPS outage in seconds, fixes with START <= t < END are missing (repeatable); "
+                        "at least 2 fixes must remain")
     p.add_argument("--figures", metavar="DIR",
                    help="also write the notebook-5 and notebook-6 figures as PNG in the slides style (one "
                         "realization with the same outages, and the Monte Carlo checks)")
@@ -69,8 +93,8 @@ def result_to_dict(mc, outages=()) -> dict:
 
 
 #: file stem of each ``--figures`` file -> the lecture figure (kfcal_helpers.figures.FIGURES) it draws
-FIGURE_FILES = {"calibration_errors": "calib_errors", "calibration_sigma_sawtooth": "calib_sigma_sawtooth",
-                "calibration_checks": None}
+FIGURE_FILES = {"calib_errors": "calib_errors", "calib_sigma_sawtooth": "calib_sigma_sawtooth",
+                "calib_checks": None}
 
 
 def figure_case(mc, seed: int = 0):
@@ -111,17 +135,36 @@ def write_figures(mc, directory, seed: int = 0) -> list[Path]:
     return save_figures(entries, directory, data, argname="--figures")
 
 
+def _params(args):
+    """CalibrationParams from the options; ValueError naming the option (``--omega``, not ``omega``)."""
+    try:
+        return CalibrationParams(omega=args.omega, imu_rate=args.imu_rate, gps_rate=args.gps_rate,
+                                 duration=args.duration)
+    except ValueError as exc:
+        text = re.sub(r"\b(" + "|".join(_FLAGS) + r")\b", lambda m: _FLAGS[m.group(1)], str(exc))
+        raise ValueError(text) from None
+
+
 def run(args) -> int:
+    from ..cli import dumps_json
+
     require_int("--runs", args.runs, minimum=2)
     if args.figures is not None:
         from ..figures import check_directory, use_agg_backend
 
         check_directory(args.figures, "--figures")  # before the Monte Carlo, not after it
         use_agg_backend()
-    params = CalibrationParams(omega=args.omega, imu_rate=args.imu_rate, gps_rate=args.gps_rate,
-                               duration=args.duration)
+    params = _params(args)
+    # before anything of the scenario's size is allocated: refuse what cannot fit or would take hours
+    estimate_run(params, args.runs, args.engine, runs_name="--runs",
+                 params_name="--duration, --imu-rate, --gps-rate" + (", --figures" if args.figures else ""),
+                 extra_bytes=FIGURES_BYTES + FIGURES_BYTES_PER_FIX2 * params.n_gps**2 if args.figures else 0.0,
+                 between_fixes=bool(args.json))
     windows = [parse_outage(text, "--outage") for text in args.outage]
     missing = outage_mask(params, windows, name="--outage") if windows else None
+    if missing is not None and (~missing).sum() < 2:
+        raise ValueError(f"--outage: the outages leave {int((~missing).sum())} of the {params.n_gps} GPS fixes; "
+                         f"at least 2 must remain")
     mc = run_monte_carlo(params, n_runs=args.runs, seed=args.seed, engine=args.engine,
                          truth=args.truth, progress=None, missing_fixes=missing,
                          between_fixes=bool(args.json))
@@ -130,13 +173,16 @@ def run(args) -> int:
         d = result_to_dict(mc, windows)
         if written:
             d["figures"] = [str(p) for p in written]
-        print(json.dumps(d))
+        print(dumps_json(d))
         return 0
     s, es = mc.sigma_final, mc.ensemble_sigma_final
     print(f"{mc.n_runs} realizations, engine {mc.engine}, truth {mc.truth}, {mc.seconds:.2f} s")
     print(f"sigma at the last fix from P:        p {s[0]:.4g} m, v {s[1]:.4g} m/s, b {s[2]:.4g} m/s^2")
     print(f"sigma at the last fix from ensemble: p {es[0]:.4g} m, v {es[1]:.4g} m/s, b {es[2]:.4g} m/s^2")
     print(format_checks(mc))
+    print(COLUMNS_LEGEND)
+    if mc.truth == "analytic" and not all(c.passed for c in mc.checks().values()):
+        print(MISMATCH_NOTE)
     for p in written:
         print(f"wrote {p}")
     return 0

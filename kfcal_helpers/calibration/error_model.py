@@ -56,7 +56,13 @@ def phi_power(params: CalibrationParams, k) -> np.ndarray:
 
     ``k`` int or int array (m,); returns (3, 3) or (m, 3, 3).
     """
-    k = np.asarray(k, dtype=float)
+    if not isinstance(params, CalibrationParams):
+        raise ValueError(f"params must be a CalibrationParams, got {type(params).__name__}")
+    k_in = np.asarray(k)
+    if k_in.dtype == bool or not (np.issubdtype(k_in.dtype, np.integer) or np.issubdtype(k_in.dtype, np.floating)) \
+            or not np.all(np.isfinite(k_in)) or np.any(k_in != np.round(k_in)):
+        raise ValueError(f"k must be an integer or an array of integers (numbers of IMU steps), got {k!r}")
+    k = k_in.astype(float)
     s = k * params.dt
     out = np.zeros(k.shape + (3, 3))
     out[..., 0, 0] = out[..., 1, 1] = out[..., 2, 2] = 1.0

@@ -182,9 +182,9 @@ def covariance_sequence(params: CalibrationParams, missing_fixes=None, model: Er
     """
     m = _model(params, model)
     n_gps, r = params.n_gps, params.steps_per_fix
-    missing = np.zeros(n_gps, bool) if missing_fixes is None else np.asarray(missing_fixes, bool)
-    if missing.shape != (n_gps,):
-        raise ValueError(f"missing_fixes must have shape ({n_gps},), got {missing.shape}")
+    missing = np.zeros(n_gps, bool) if missing_fixes is None else np.asarray(missing_fixes)
+    if missing.shape != (n_gps,) or missing.dtype != bool:
+        raise ValueError(f"missing_fixes must be a bool array of shape ({n_gps},), got {missing.dtype} {missing.shape}")
     powers, Qk = between_fixes(params, m)
     H, R = m.H, m.V
     I3 = np.eye(3)

@@ -1,8 +1,13 @@
 """Monte Carlo validation of the calibration filter (seven checks at the GPS fixes, and one between them).
 
-Realizations are simulated in chunks of :data:`CHUNK_SIZE` (the 200 Hz arrays of a
+Realizations are simulated in chunks of at most :data:`CHUNK_SIZE` (the 200 Hz arrays of a
 chunk are dropped once the chunk is filtered), and only sums over realizations
-are kept, so memory does not grow with the number of runs.
+are kept, so memory does not grow with the number of runs.  The chunk size follows the
+size of one realization (:func:`chunk_size`, a function of the parameters only, so results
+do not depend on the machine) and keeps the estimated peak memory of the process under
+:data:`MEMORY_LIMIT`; a run that cannot fit even one realization at a time, or whose
+estimated time exceeds :data:`MAX_SECONDS`, is refused with its estimate
+(:func:`estimate_run`), before any work starts.
 
 For realization ``l`` and fix ``i``: error ``e = dx - dx_hat`` (a posteriori),
 prior error ``e_bar = dx - dx_hat_prior``, residual ``r = dz - H dx_hat_prior``.
@@ -48,17 +53,29 @@ import numpy as np
 from scipy import stats
 
 from ..consistency import Check, chi2_bounds
-from ..progress import progress as _progress
+from ..progress import progress_bar as _progress_bar
 from ..validation import require_choice, require_finite, require_int
 from .error_model import ErrorStateModel
 from .filters import batch_filter, between_fixes as _between_fix_steps, covariance_sequence, run_filterpy
 from .params import CalibrationParams
 from .simulation import TRUTH_MODELS, simulate
 
-__all__ = ["CHUNK_SIZE", "ENGINES", "CHECK_NAMES", "Check", "MonteCarloResult", "BetweenFixes",
-           "run_monte_carlo", "format_checks"]
+__all__ = ["CHUNK_SIZE", "MEMORY_LIMIT", "MAX_SECONDS", "chunk_size", "estimate_run", "ENGINES", "CHECK_NAMES",
+           "Check", "MonteCarloResult", "BetweenFixes", "run_monte_carlo", "format_checks"]
 
-CHUNK_SIZE = 500  #: realizations simulated together (fixed, so results do not depend on the machine)
+CHUNK_SIZE = 500  #: most realizations simulated together (see chunk_size)
+MEMORY_LIMIT = 500e6  #: bytes, the estimated peak memory (resident) a run may need
+MAX_SECONDS = 3600.0  #: s, the longest estimated run accepted
+# Cost model, measured (tracemalloc, ru_maxrss, wall time) on the 2-core reference machine and
+# rounded up: the interpreter with numpy and scipy; bytes per GPS fix squared (the pairwise
+# residual statistics) and per IMU sample (the covariance sequence); bytes per IMU sample and
+# per fix of one realization in a chunk; seconds per IMU sample of one realization.
+_BASE_BYTES = 130e6
+_FIXED_BYTES_PER_FIX2, _FIXED_BYTES_PER_SAMPLE = 340.0, 120.0
+_BYTES_PER_SAMPLE, _BYTES_PER_FIX = 64.0, 256.0
+_BETWEEN_BYTES_PER_SAMPLE = 48.0
+_SECONDS_PER_SAMPLE = {"batch": 1.5e-7, "filterpy": 6e-6}
+_SECONDS_PER_FIX2 = 3e-6
 ENGINES = ("batch", "filterpy")
 CHECK_NAMES = ("mean_error", "covariance", "orthogonality", "residual_independence",
                "residual_variance", "nees", "nis")
@@ -143,11 +160,14 @@ class MonteCarloResult:
         Ekk = np.einsum("iaa->ia", self.e_cov)
         stat[:, ~diag] /= np.sqrt(Ekk[:, iu[0][~diag]] * Ekk[:, iu[1][~diag]])
         expected[:, ~diag] /= np.sqrt(Pkk[:, iu[0][~diag]] * Pkk[:, iu[1][~diag]])
-        fisher = z / np.sqrt(N - 3) if N > 3 else np.inf
-        with np.errstate(divide="ignore"):  # a filter claiming a correlation of exactly +-1: band [+-1, +-1]
-            z_rho = np.arctanh(np.clip(expected, -1.0, 1.0))
-        lo = np.tanh(z_rho - fisher)
-        hi = np.tanh(z_rho + fisher)
+        if N > 3:
+            fisher = z / np.sqrt(N - 3)
+            with np.errstate(divide="ignore"):  # a filter claiming a correlation of exactly +-1: band [+-1, +-1]
+                z_rho = np.arctanh(np.clip(expected, -1.0, 1.0))
+            lo = np.tanh(z_rho - fisher)
+            hi = np.tanh(z_rho + fisher)
+        else:  # too few runs for Fisher's interval: any correlation
+            lo, hi = np.full_like(expected, -1.0), np.full_like(expected, 1.0)
         lo[:, diag] = Pkk * stats.chi2.ppf(level / 2, N - 1) / (N - 1)
         hi[:, diag] = Pkk * stats.chi2.ppf(1 - level / 2, N - 1) / (N - 1)
         out["covariance"] = (stat, expected, lo, hi)
@@ -310,6 +330,47 @@ class _Sums:
         self.nis += np.einsum("nia,iab,nib->i", residual, S_inv, residual)
 
 
+def _fixed_bytes(params: CalibrationParams) -> float:
+    return _BASE_BYTES + _FIXED_BYTES_PER_FIX2 * params.n_gps**2 + _FIXED_BYTES_PER_SAMPLE * params.n_imu
+
+
+def _realization_bytes(params: CalibrationParams, between_fixes: bool = False) -> float:
+    # between_fixes keeps the true and the estimated 200 Hz error state of the chunk (2 x 3 floats)
+    per_sample = _BYTES_PER_SAMPLE + (_BETWEEN_BYTES_PER_SAMPLE if between_fixes else 0.0)
+    return per_sample * params.n_imu + _BYTES_PER_FIX * params.n_gps
+
+
+def chunk_size(params: CalibrationParams, between_fixes: bool = False) -> int:
+    """Realizations simulated together for ``params``: :data:`CHUNK_SIZE`, or fewer when the
+    realizations are long, so that the estimated peak stays under :data:`MEMORY_LIMIT`
+    (at least 1; :func:`estimate_run` refuses runs where even 1 does not fit)."""
+    room = MEMORY_LIMIT - _fixed_bytes(params)
+    return int(max(1, min(CHUNK_SIZE, room // _realization_bytes(params, between_fixes))))
+
+
+def estimate_run(params: CalibrationParams, n_runs: int, engine: str = "batch",
+                 runs_name: str = "n_runs", params_name: str = "params",
+                 extra_bytes: float = 0.0, between_fixes: bool = False) -> tuple[float, float]:
+    """Estimated ``(peak bytes, seconds)`` of :func:`run_monte_carlo`; ValueError, with the
+    estimate, when the peak exceeds :data:`MEMORY_LIMIT` (the scenario has too many IMU samples
+    or GPS fixes) or the time exceeds :data:`MAX_SECONDS` (``runs_name`` and ``params_name`` name
+    the arguments in the message).  ``extra_bytes``: what the caller needs after the Monte Carlo,
+    while its result is alive (the command line's figures)."""
+    per_run = _realization_bytes(params, between_fixes)
+    peak = _fixed_bytes(params) + max(min(n_runs, chunk_size(params, between_fixes)) * per_run, extra_bytes)
+    if peak > MEMORY_LIMIT:
+        raise ValueError(
+            f"{params_name}: one realization of {params.n_imu} IMU samples and {params.n_gps} GPS fixes needs about "
+            f"{peak / 1e6:.0f} MB, more than the {MEMORY_LIMIT / 1e6:.0f} MB allowed; use a shorter duration "
+            f"or lower rates (at most about 1000 GPS fixes and 2 million IMU samples)")
+    seconds = (_SECONDS_PER_SAMPLE[engine] * params.n_imu * float(n_runs)
+               + _SECONDS_PER_FIX2 * params.n_gps**2)
+    if seconds > MAX_SECONDS:
+        raise ValueError(f"{runs_name}: {n_runs} realizations with engine {engine!r} would take about "
+                         f"{seconds / 3600:.3g} h, more than the {MAX_SECONDS / 3600:g} h allowed; use fewer")
+    return peak, seconds
+
+
 def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000, seed=0,
                     engine: str = "batch", truth: str = "euler", alpha: float = 0.05,
                     missing_fixes=None, progress: bool | None = False,
@@ -334,6 +395,11 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
     Returns
     -------
     MonteCarloResult
+
+    Raises
+    ------
+    ValueError naming the argument: bad values, missing fixes leaving fewer than 2 fixes,
+    or a run refused by :func:`estimate_run` (too much memory or time).
     """
     params = CalibrationParams() if params is None else params
     if not isinstance(params, CalibrationParams):
@@ -347,6 +413,12 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
     missing = np.zeros(params.n_gps, bool) if missing_fixes is None else np.asarray(missing_fixes)
     if missing.shape != (params.n_gps,) or missing.dtype != bool:
         raise ValueError(f"missing_fixes must be a bool array of shape ({params.n_gps},)")
+    if (~missing).sum() < 2:
+        raise ValueError(f"missing_fixes must leave at least 2 of the {params.n_gps} GPS fixes, "
+                         f"got {int((~missing).sum())}")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
+        raise ValueError(f"seed must be None or an integer >= 0, got {seed!r}")
+    estimate_run(params, n_runs, engine, between_fixes=between_fixes)
 
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
@@ -357,8 +429,10 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
     P_post_inv = np.linalg.inv(P_post)
     S_inv = np.linalg.inv(S)
     sums = _Sums(params.n_gps)
-    sizes = [CHUNK_SIZE] * (n_runs // CHUNK_SIZE) + ([n_runs % CHUNK_SIZE] if n_runs % CHUNK_SIZE else [])
-    for size in _progress(sizes, total=len(sizes), desc=f"Monte Carlo ({engine})", enabled=progress):
+    chunk = chunk_size(params, between_fixes)
+    sizes = [chunk] * (n_runs // chunk) + ([n_runs % chunk] if n_runs % chunk else [])
+    bar = _progress_bar(n_runs, f"Monte Carlo ({engine})", progress)
+    for size in sizes:
         sim = simulate(params, size, rng, truth=truth, missing_fixes=missing if missing.any() else None)
         dx, dz = sim.dx_at_fixes, sim.dz
         dx_full = bsums.true_errors(sim) if bsums is not None else None
@@ -367,7 +441,10 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
             res = batch_filter(params, dz, full_rate=False, covariances=cov, model=model)
             x_prior, x_post, residual = res.x_prior, res.x_post, res.residual
         else:
-            runs = [run_filterpy(params, dz[l], model) for l in range(size)]
+            runs = []
+            for l in range(size):  # the bar moves with every realization (about 0.1 s each)
+                runs.append(run_filterpy(params, dz[l], model))
+                bar.update(1)
             x_prior = np.stack([r.x_prior for r in runs])
             x_post = np.stack([r.x_post for r in runs])
             residual = np.stack([r.residual for r in runs])
@@ -377,6 +454,9 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
                       else np.stack([run.x for run in runs]))
             bsums.add(dx_full, x_full)
             del dx_full, x_full
+        if engine == "batch":
+            bar.update(size)
+    bar.close()
 
     N = sums.n
     e_mean = sums.e / N

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, replace
+import math
+from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
 from ..validation import require_finite, require_positive
 
-__all__ = ["CalibrationParams"]
+__all__ = ["CalibrationParams", "MAX_SAMPLES"]
+
+MAX_SAMPLES = 1e12  #: most IMU samples (duration * imu_rate) a scenario may describe
 
 
 @dataclass(frozen=True)
@@ -22,7 +25,7 @@ class CalibrationParams:
     """
 
     A: float = 10.0  #: acceleration amplitude, m/s^2
-    omega: float = 0.2  #: angular frequency of the acceleration, rad/s (> 0; use A = 0 for no acceleration)
+    omega: float = 0.2  #: angular frequency of the acceleration, rad/s (0 < omega <= pi imu_rate; A = 0 for none)
     imu_rate: float = 200.0  #: IMU sampling rate, Hz
     gps_rate: float = 5.0  #: GPS fix rate, Hz (must divide imu_rate)
     duration: float = 30.0  #: length of the run, s
@@ -42,6 +45,12 @@ class CalibrationParams:
         for name in ("omega", "imu_rate", "gps_rate", "duration", "bias_var", "W", "p0_var",
                      "v0_var", "gps_pos_var", "gps_vel_var"):
             object.__setattr__(self, name, require_positive(name, getattr(self, name)))
+        if self.omega > math.pi * self.imu_rate:
+            raise ValueError(f"omega must be at most pi * imu_rate = {math.pi * self.imu_rate:g} rad/s (the IMU's "
+                             f"Nyquist frequency: a faster acceleration is not sampled), got {self.omega:g} rad/s")
+        if self.imu_rate / self.gps_rate > MAX_SAMPLES or self.duration * self.imu_rate > MAX_SAMPLES:
+            raise ValueError(f"duration * imu_rate must be at most {MAX_SAMPLES:g} IMU samples, got "
+                             f"duration={self.duration:g} s, imu_rate={self.imu_rate:g} Hz, gps_rate={self.gps_rate:g} Hz")
         ratio = self.imu_rate / self.gps_rate
         if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
             raise ValueError(
@@ -96,7 +105,10 @@ class CalibrationParams:
         return self.t_imu[self.fix_indices]
 
     def replace(self, **changes) -> "CalibrationParams":
-        """A copy with some fields changed (validated again)."""
+        """A copy with some fields changed (validated again); ValueError for a name that is not a field."""
+        unknown = sorted(set(changes) - {f.name for f in fields(self)})
+        if unknown:
+            raise ValueError(f"changes must name fields of CalibrationParams, got {unknown}")
         return replace(self, **changes)
 
     def as_dict(self) -> dict:

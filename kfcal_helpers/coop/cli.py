@@ -16,13 +16,13 @@ whose NIS falls inside the bounds; that is a fit, not a test.
 
 from __future__ import annotations
 
-import json
 import time
 
 import numpy as np
 
 from ..consistency import chi2_bounds
-from ..validation import require_int, require_positive
+from ..cli import dumps_json
+from ..validation import MAX_SEED, cli_float, cli_int, require_int, require_positive
 from .data import load_log
 from .filters import FILTERS, TUNED_Q_SCALE, fit_q_scale, run_filter
 from .model import N_MEAS, CoopParams
@@ -41,15 +41,22 @@ SOURCE_FIT = "fit to this log (maximum likelihood over the ladder), not a test"
 SOURCE_GIVEN = "given"
 
 
+#: the range of a given --q-scale (beyond it the filters' covariances lose precision)
+Q_SCALE_RANGE = (1e-6, 1e6)
+
+
 def parse_q_scale(text):
-    """``None`` (the default), ``"auto"`` or a positive float; raise ValueError otherwise."""
+    """``None`` (the default), ``"auto"`` or a number in Q_SCALE_RANGE; raise ValueError otherwise."""
     if text is None or text == "auto":
         return text
     try:
         value = float(text)
     except (TypeError, ValueError):
-        raise ValueError(f"q-scale must be a positive number or 'auto', got {text!r}") from None
-    return require_positive("q-scale", value)
+        raise ValueError(f"--q-scale must be a positive number or 'auto', got {text!r}") from None
+    value = require_positive("--q-scale", value)
+    if not Q_SCALE_RANGE[0] <= value <= Q_SCALE_RANGE[1]:
+        raise ValueError(f"--q-scale must be from {Q_SCALE_RANGE[0]:g} to {Q_SCALE_RANGE[1]:g} or 'auto', got {text}")
+    return value
 
 
 def add_parser(subparsers):
@@ -58,14 +65,14 @@ def add_parser(subparsers):
                               description=__doc__.splitlines()[0])
     p.add_argument("--filter", choices=FILTERS, default="ekf", help="which filter (default ekf)")
     p.add_argument("--log", metavar="PATH", help="course log: a folder of CSVs or a .mat (default: the generated log)")
-    p.add_argument("--runs", type=int, metavar="N", help="run an N-run truth-model Monte Carlo instead of a log")
-    p.add_argument("--seed", type=int, default=None,
+    p.add_argument("--runs", type=cli_int(1, 10000), metavar="N", help="run an N-run truth-model Monte Carlo instead of a log (1 to 10000)")
+    p.add_argument("--seed", type=cli_int(0, MAX_SEED), default=None,
                    help=f"seed of the generated log (default {DEFAULT_LOG_SEED}) or of the Monte Carlo (default 0)")
     p.add_argument("--q-scale", default=None, metavar="S",
-                   help="filter Q = S * Qtrue: a positive number, or 'auto' to fit S to the log by maximum "
+                   help="filter Q = S * Qtrue: a number from 1e-6 to 1e6, or 'auto' to fit S to the log by maximum "
                         "likelihood over a ladder (a fit, not a test; default: the filter's truth-model-tuned scale)")
-    p.add_argument("--every", type=int, default=1, metavar="M", help="use the measurements of every M-th step only")
-    p.add_argument("--alpha", type=float, default=0.05, help="significance of the chi-square tests (default 0.05)")
+    p.add_argument("--every", type=cli_int(1), default=1, metavar="M", help="use the measurements of every M-th step only")
+    p.add_argument("--alpha", type=cli_float(0, 0.5), default=0.05, help="significance of the chi-square tests (default 0.05)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(run=run)
     return p
@@ -106,7 +113,7 @@ def run(args) -> int:
         out["q_scale_source"] = SOURCE_TEST if q_scale is None else SOURCE_GIVEN
     else:
         if args.log is not None:
-            log = load_log(args.log)
+            log = load_log(args.log, argname="--log")
         else:
             log = generate_log(seed=DEFAULT_LOG_SEED if args.seed is None else args.seed)
         if every > 1:
@@ -134,7 +141,7 @@ def run(args) -> int:
                                                    else [])
     out["seconds"] = time.perf_counter() - t0
     if args.json:
-        print(json.dumps(out))
+        print(dumps_json(out))
     else:
         width = max(len(k) for k in out)
         for key, value in out.items():

@@ -13,6 +13,8 @@ Inside the package a log is a :class:`CoopLog` with one *row* per time.
 
 from __future__ import annotations
 
+import io
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -91,8 +93,24 @@ class CoopLog:
         return CoopLog(self.t, y, self.Qtrue, self.Rtrue, self.truth, f"{self.source} (every {m})")
 
 
+#: largest magnitude accepted in a loaded ydata (m, rad): beyond it the filters' squares overflow
+MAX_MEASUREMENT = 1e6
+
+
+def _numeric(name, value) -> np.ndarray:
+    """``value`` as a real float array; ValueError naming ``name`` for text, structs, cells or complex."""
+    arr = np.asarray(value)
+    if np.iscomplexobj(arr):
+        raise ValueError(f"{name} must hold real numbers, got complex values")
+    if arr.dtype.kind not in "biuf":
+        kind = {"U": "text", "S": "text", "V": "a struct", "O": "a cell array or struct"}.get(arr.dtype.kind,
+                                                                                               str(arr.dtype))
+        raise ValueError(f"{name} must be a numeric matrix, got {kind}")
+    return arr.astype(float)
+
+
 def _matrix(name, value, shape) -> np.ndarray:
-    arr = np.atleast_2d(np.asarray(value, dtype=float))
+    arr = np.atleast_2d(_numeric(name, value))
     if arr.ndim != 2 or any(s is not None and s != n for s, n in zip(shape, arr.shape)):
         want = " x ".join("K" if s is None else str(s) for s in shape)
         raise ValueError(f"{name} must be a {want} matrix, got shape {arr.shape}")
@@ -101,40 +119,70 @@ def _matrix(name, value, shape) -> np.ndarray:
 
 def _build(raw: dict, source: str) -> CoopLog:
     ydata = _matrix("ydata", raw["ydata"], (N_MEAS, None))
-    tvec = np.asarray(raw["tvec"], dtype=float)
+    tvec = _numeric("tvec", raw["tvec"])
     if tvec.ndim > 2 or (tvec.ndim == 2 and min(tvec.shape) != 1):
         raise ValueError(f"tvec must be a 1 x K vector, got shape {tvec.shape}")
+    finite = ydata[np.isfinite(ydata)]
+    if finite.size == 0:
+        raise ValueError("ydata holds no measurement (every column is NaN)")
+    if np.abs(finite).max() > MAX_MEASUREMENT:
+        raise ValueError(f"ydata values must be at most {MAX_MEASUREMENT:g} in magnitude (m, rad), "
+                         f"got {np.abs(finite).max():.3g}")
     return CoopLog(tvec.ravel(), ydata.T, _matrix("Qtrue", raw["Qtrue"], (N_STATES, N_STATES)),
                    _matrix("Rtrue", raw["Rtrue"], (N_MEAS, N_MEAS)), source=source)
 
 
-def load_log(path) -> CoopLog:
+def _read_csv(name: str, f: Path, argname: str) -> np.ndarray:
+    if f.is_dir():
+        raise ValueError(f"{argname}: {f} is a directory, not a CSV file")
+    if not f.exists():
+        raise ValueError(f"{argname}: {f} is missing (a log folder needs "
+                         f"{', '.join(v + '.csv' for v in LOG_VARIABLES)})")
+    try:
+        with open(f, encoding="utf-8", errors="strict") as fh:
+            text = fh.read()
+    except OSError as exc:
+        raise ValueError(f"{argname}: cannot read {f}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{name}: {f} is not a numeric CSV (not text)") from None
+    if not text.strip():
+        raise ValueError(f"{name}: {f} is empty")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return np.loadtxt(io.StringIO(text), delimiter=",", ndmin=2)
+    except ValueError as exc:
+        reason = " ".join(str(exc).split())
+        raise ValueError(f"{name}: {f} is not a numeric CSV ({reason})") from None
+
+
+def load_log(path, argname: str = "path") -> CoopLog:
     """Load a course observation log from a CSV folder or a ``.mat`` file.
 
-    Raises ValueError naming the file or variable that is missing or has the wrong shape.
+    Raises ValueError naming the path (as ``argname``, e.g. ``--log``), the file or the variable
+    that is missing, unreadable, not numeric, complex, or has the wrong shape or values.
     """
+    if isinstance(path, bool) or not isinstance(path, (str, Path)) or str(path) == "":
+        raise ValueError(f"{argname} must be a folder of CSVs or a .mat file path, got {path!r}")
     path = Path(path)
     if path.is_dir():
-        raw = {}
-        for name in LOG_VARIABLES:
-            f = path / f"{name}.csv"
-            if not f.is_file():
-                raise ValueError(f"path: {f} is missing (a log folder needs {', '.join(v + '.csv' for v in LOG_VARIABLES)})")
-            try:
-                raw[name] = np.loadtxt(f, delimiter=",", ndmin=2)
-            except ValueError as exc:
-                raise ValueError(f"{name}: {f} is not a numeric CSV ({exc})") from None
+        raw = {name: _read_csv(name, path / f"{name}.csv", argname) for name in LOG_VARIABLES}
         return _build(raw, str(path))
     if not path.exists():
-        raise ValueError(f"path: {path} does not exist (give a CSV folder or a .mat file)")
+        raise ValueError(f"{argname}: {path} does not exist (give a CSV folder or a .mat file)")
     if path.suffix.lower() != ".mat":
-        raise ValueError(f"path: {path} must be a folder of CSVs or a .mat file")
+        raise ValueError(f"{argname}: {path} must be a folder of CSVs or a .mat file")
     from scipy.io import loadmat
 
     try:
-        mat = loadmat(path)
-    except Exception as exc:  # scipy raises several types for unreadable files
-        raise ValueError(f"path: {path} is not a readable MATLAB file ({exc})") from None
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            mat = loadmat(path)
+    except OSError as exc:
+        raise ValueError(f"{argname}: cannot read {path}: {exc.strerror or exc}") from None
+    except Exception as exc:  # scipy raises several types for files that are not MATLAB files
+        reason = " ".join(str(exc).split())
+        raise ValueError(f"{argname}: {path} is not a readable MATLAB file ({reason})") from None
     missing = [v for v in LOG_VARIABLES if v not in mat]
     if missing:
         raise ValueError(f"{missing[0]}: variable missing from {path} (needs {', '.join(LOG_VARIABLES)})")
@@ -145,20 +193,45 @@ def _course_arrays(log: CoopLog) -> dict:
     return {"ydata": log.y.T, "tvec": log.t[None, :], "Qtrue": log.Qtrue, "Rtrue": log.Rtrue}
 
 
+def _check_log(log) -> None:
+    if not isinstance(log, CoopLog):
+        raise ValueError(f"log must be a CoopLog, got {type(log).__name__}")
+
+
 def write_log_csv(log: CoopLog, folder) -> Path:
-    """Write ``log`` as the four course CSV files into ``folder`` (created); returns the folder."""
+    """Write ``log`` as the four course CSV files into ``folder`` (created); returns the folder.
+    ValueError naming ``folder`` if it is a file or cannot be created or written."""
+    _check_log(log)
+    if isinstance(folder, bool) or not isinstance(folder, (str, Path)) or str(folder) == "":
+        raise ValueError(f"folder must be a directory path, got {folder!r}")
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    for name, arr in _course_arrays(log).items():
-        lines = [",".join("NaN" if np.isnan(v) else f"{v:.17g}" for v in row) for row in arr]
-        (folder / f"{name}.csv").write_text("\n".join(lines) + "\n")
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"folder: {folder} is an existing file, not a directory")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        for name, arr in _course_arrays(log).items():
+            lines = [",".join("NaN" if np.isnan(v) else f"{v:.17g}" for v in row) for row in arr]
+            (folder / f"{name}.csv").write_text("\n".join(lines) + "\n")
+    except OSError as exc:
+        raise ValueError(f"folder: cannot write into {folder}: {exc.strerror or exc}") from None
     return folder
 
 
 def write_log_mat(log: CoopLog, file) -> Path:
-    """Write ``log`` as a MATLAB ``.mat`` file with the course variable names; returns the path."""
+    """Write ``log`` as a MATLAB ``.mat`` file with the course variable names; returns the path.
+    ValueError naming ``file`` if its folder does not exist or it cannot be written."""
     from scipy.io import savemat
 
+    _check_log(log)
+    if isinstance(file, bool) or not isinstance(file, (str, Path)) or str(file) == "":
+        raise ValueError(f"file must be a file path, got {file!r}")
     file = Path(file)
-    savemat(file, _course_arrays(log))
+    if not file.parent.is_dir():
+        raise ValueError(f"file: the folder {file.parent} does not exist (create it first)")
+    if file.is_dir():
+        raise ValueError(f"file: {file} is a directory")
+    try:
+        savemat(file, _course_arrays(log))
+    except OSError as exc:
+        raise ValueError(f"file: cannot write {file}: {exc.strerror or exc}") from None
     return file

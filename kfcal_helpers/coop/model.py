@@ -197,7 +197,10 @@ def _wrap_components(v, sl, copy=True):
 
 
 def wrap_state(x):
-    """Copy of states ``x`` (..., 6) with the headings wrapped to (-pi, pi]."""
+    """Copy of states ``x`` (..., 6) with the headings wrapped to (-pi, pi]; ValueError for another shape."""
+    x = np.asarray(x, dtype=float)
+    if x.ndim < 1 or x.shape[-1] != N_STATES:
+        raise ValueError(f"x must have shape (..., {N_STATES}), got {x.shape}")
     return _wrap_components(x, _STATE_ANGLE_SLICE)
 
 
@@ -250,8 +253,10 @@ def _controls(u, L):
 
 
 def dynamics(x, u, L: float = 0.5):
-    """Continuous-time dynamics ``f(x, u)`` without noise, shape (..., 6) (m/s, rad/s)."""
-    x = np.asarray(x, dtype=float)
+    """Continuous-time dynamics ``f(x, u)`` without noise, shape (..., 6) (m/s, rad/s).
+    ValueError unless x is (..., 6) and u (..., 4) with finite entries."""
+    x = require_last_axis("x", x, N_STATES)
+    u = require_last_axis("u", u, 4)
     L = require_positive("L", L)
     vg, wg, va, wa = _controls(u, L)
     return np.stack(np.broadcast_arrays(vg * np.cos(x[..., 2]), vg * np.sin(x[..., 2]), wg,
@@ -364,8 +369,9 @@ def jacobian_B(x, u, L: float = 0.5) -> np.ndarray:
 
 
 def jacobian_C(x) -> np.ndarray:
-    """Measurement Jacobian ``C = dh/dx`` at x, shape (..., 5, 6); raises at range 0."""
-    x, dxi, deta, r2 = _relative(x)
+    """Measurement Jacobian ``C = dh/dx`` at x (..., 6), shape (..., 5, 6); ValueError for another
+    shape, a non-finite entry, or at range 0."""
+    x, dxi, deta, r2 = _relative(require_last_axis("x", x, N_STATES))
     r = np.sqrt(r2)
     C = np.zeros(x.shape[:-1] + (N_MEAS, N_STATES))
     for row in (0, 2):  # both bearings have the same position derivatives

@@ -1,0 +1,187 @@
+"""Table-driven fuzz test of the public API: a bad value raises ValueError whose message names the
+argument and what is allowed (never TypeError, IndexError, LinAlgError, OverflowError, ZeroDivisionError
+or FileExistsError), nonsense is not accepted silently, and no RuntimeWarning escapes (the test
+session turns RuntimeWarnings from kfcal_helpers into errors)."""
+
+import numpy as np
+import pytest
+from scipy.io import savemat
+
+from kfcal_helpers.calibration import (CalibrationParams, covariance_sequence, outage_mask, parse_outage,
+                                       run_monte_carlo, simulate)
+from kfcal_helpers.calibration.error_model import phi_power
+from kfcal_helpers.consistency import chi2_bounds, inside_fraction, nees, nis
+from kfcal_helpers.coop import CoopParams, generate_log, load_log, write_log_csv, write_log_mat
+from kfcal_helpers.coop.model import dynamics, jacobian_C, measure, step, wrap_state
+
+P = CalibrationParams()
+X0 = CoopParams().x0
+U0 = CoopParams().u0
+
+
+def _missing(keep):
+    m = np.ones(P.n_gps, bool)
+    m[list(keep)] = False
+    return m
+
+
+@pytest.fixture(scope="module")
+def small_log():
+    return generate_log(CoopParams(duration=1.0), seed=1)
+
+
+def _mat(tmp, **change):
+    lg = generate_log(CoopParams(duration=1.0), seed=1)
+    raw = {"ydata": lg.y.T, "tvec": lg.t[None, :], "Qtrue": lg.Qtrue, "Rtrue": lg.Rtrue}
+    raw.update(change)
+    savemat(tmp / "log.mat", raw)
+    return tmp / "log.mat"
+
+
+def _folder(tmp, **files):
+    folder = tmp / "log"
+    write_log_csv(generate_log(CoopParams(duration=1.0), seed=1), folder)
+    for name, text in files.items():
+        (folder / f"{name}.csv").unlink()
+        if text is None:
+            (folder / f"{name}.csv").mkdir()
+        else:
+            (folder / f"{name}.csv").write_text(text)
+    return folder
+
+
+def _file(tmp):
+    (tmp / "a_file").write_text("x")
+    return tmp / "a_file"
+
+
+# (id, call(tmp_path, log) -> anything, regex the ValueError message must match)
+BAD = [
+    # run_monte_carlo
+    ("mc seed str", lambda t, lg: run_monte_carlo(n_runs=2, seed="x"), r"seed must be None or an integer >= 0"),
+    ("mc seed float", lambda t, lg: run_monte_carlo(n_runs=2, seed=1.5), r"seed must be"),
+    ("mc seed negative", lambda t, lg: run_monte_carlo(n_runs=2, seed=-1), r"seed must be"),
+    ("mc seed bool", lambda t, lg: run_monte_carlo(n_runs=2, seed=True), r"seed must be"),
+    ("mc runs 1e30", lambda t, lg: run_monte_carlo(n_runs=10**30), r"n_runs: .* about .* h, more than"),
+    ("mc runs 1e9", lambda t, lg: run_monte_carlo(n_runs=10**9), r"n_runs: 1000000000 realizations .* h"),
+    ("mc runs float", lambda t, lg: run_monte_carlo(n_runs=1e3), r"n_runs must be an integer"),
+    ("mc one fix left", lambda t, lg: run_monte_carlo(n_runs=3, missing_fixes=_missing([150])),
+     r"missing_fixes must leave at least 2 of the 151 GPS fixes, got 1"),
+    ("mc no fix left", lambda t, lg: run_monte_carlo(n_runs=3, missing_fixes=np.ones(151, bool)),
+     r"missing_fixes must leave at least 2"),
+    ("mc float mask", lambda t, lg: run_monte_carlo(n_runs=3, missing_fixes=np.zeros(151)), r"missing_fixes"),
+    ("mc too big", lambda t, lg: run_monte_carlo(P.replace(gps_rate=200.0), n_runs=2), r"params: .* MB, more than"),
+    ("mc huge samples", lambda t, lg: run_monte_carlo(P.replace(imu_rate=1e7), n_runs=2), r"params: .* MB"),
+    ("mc params", lambda t, lg: run_monte_carlo("default"), r"params must be a CalibrationParams"),
+    # CalibrationParams
+    ("params replace bogus", lambda t, lg: P.replace(bogus=1), r"changes must name fields of CalibrationParams"),
+    ("params omega huge", lambda t, lg: CalibrationParams(omega=1e308), r"omega must be at most pi \* imu_rate"),
+    ("params omega 1e160", lambda t, lg: CalibrationParams(omega=1e160), r"omega must be at most"),
+    ("params duration huge", lambda t, lg: CalibrationParams(duration=1e300), r"duration \* imu_rate must be at most"),
+    ("params rates tiny", lambda t, lg: CalibrationParams(imu_rate=1e300, gps_rate=1e-300, omega=0.2),
+     r"at most 1e\+12"),
+    ("params omega str", lambda t, lg: CalibrationParams(omega="fast"), r"omega must be a finite real number"),
+    # phi_power, covariance_sequence, simulate, outages
+    ("phi_power 1.5", lambda t, lg: phi_power(P, 1.5), r"k must be an integer"),
+    ("phi_power str", lambda t, lg: phi_power(P, "a"), r"k must be an integer"),
+    ("phi_power array", lambda t, lg: phi_power(P, [1, 2.5]), r"k must be an integer"),
+    ("phi_power nan", lambda t, lg: phi_power(P, np.nan), r"k must be an integer"),
+    ("phi_power bool", lambda t, lg: phi_power(P, True), r"k must be an integer"),
+    ("phi_power params", lambda t, lg: phi_power(None, 1), r"params must be a CalibrationParams"),
+    ("covariance_sequence float mask", lambda t, lg: covariance_sequence(P, np.zeros(151)),
+     r"missing_fixes must be a bool array of shape \(151,\)"),
+    ("covariance_sequence int mask", lambda t, lg: covariance_sequence(P, np.ones(151, int)), r"missing_fixes"),
+    ("simulate 0 runs", lambda t, lg: simulate(P, 0, np.random.default_rng(0)), r"n_runs must be an integer >= 1"),
+    ("simulate rng", lambda t, lg: simulate(P, 2, 0), r"rng must be a numpy.random.Generator"),
+    ("outage_mask pair", lambda t, lg: outage_mask(P, [(1, 2, 3)]), r"windows: each window must be a \(start, end\)"),
+    ("outage_mask text", lambda t, lg: outage_mask(P, [("a", "b")]), r"windows: window bounds must be numbers"),
+    ("outage_mask outside", lambda t, lg: outage_mask(P, [(-5, 3)]), r"windows: window -5:3 s is outside"),
+    ("outage_mask scalar", lambda t, lg: outage_mask(P, 5), r"windows must be a sequence"),
+    ("parse_outage", lambda t, lg: parse_outage("1-2"), r"--outage must be START:END"),
+    # consistency
+    ("nees singular", lambda t, lg: nees(np.ones(3), np.zeros((3, 3))), r"cov must be non-singular"),
+    ("nis singular batch", lambda t, lg: nis(np.ones((4, 2)), np.ones((4, 2, 2))), r"cov must be non-singular"),
+    ("nees nan", lambda t, lg: nees(np.array([np.nan, 0, 0]), np.eye(3)), r"finite"),
+    ("nees shapes", lambda t, lg: nees(np.ones(3), np.eye(2)), r"err must have shape"),
+    ("chi2_bounds alpha", lambda t, lg: chi2_bounds(2, 10, alpha=1.5), r"alpha must be in \(0, 1\)"),
+    ("chi2_bounds dim", lambda t, lg: chi2_bounds(0.5, 10), r"dim must be an integer"),
+    ("inside_fraction nan", lambda t, lg: inside_fraction([np.nan], 0, 1), r"values must hold"),
+    # coop model
+    ("dynamics x shape", lambda t, lg: dynamics(np.zeros(5), U0), r"x must have shape \(\.\.\., 6\)"),
+    ("dynamics u shape", lambda t, lg: dynamics(X0, np.zeros(3)), r"u must have shape \(\.\.\., 4\)"),
+    ("dynamics x nan", lambda t, lg: dynamics(np.full(6, np.nan), U0), r"x must hold only finite"),
+    ("dynamics scalar", lambda t, lg: dynamics(1.0, U0), r"x must have shape"),
+    ("wrap_state short", lambda t, lg: wrap_state(np.zeros(5)), r"x must have shape \(\.\.\., 6\)"),
+    ("wrap_state 2d", lambda t, lg: wrap_state(np.zeros((2, 7))), r"x must have shape"),
+    ("wrap_state scalar", lambda t, lg: wrap_state(3.0), r"x must have shape"),
+    ("jacobian_C nan", lambda t, lg: jacobian_C(np.full(6, np.nan)), r"x must hold only finite"),
+    ("jacobian_C shape", lambda t, lg: jacobian_C(np.zeros(4)), r"x must have shape"),
+    ("jacobian_C range 0", lambda t, lg: jacobian_C(np.zeros(6)), r"range 0"),
+    ("step dT", lambda t, lg: step(X0, U0, dT=-1), r"dT must be > 0"),
+    ("measure range 0", lambda t, lg: measure(np.zeros(6)), r"range 0"),
+    ("coop params bogus", lambda t, lg: CoopParams().replace(bogus=1), r"changes must name fields"),
+    # coop logs
+    ("load_log None", lambda t, lg: load_log(None), r"path must be a folder of CSVs or a \.mat file path, got None"),
+    ("load_log number", lambda t, lg: load_log(3.5), r"path must be a folder"),
+    ("load_log empty str", lambda t, lg: load_log(""), r"path must be a folder"),
+    ("load_log missing", lambda t, lg: load_log(t / "nothing.mat"), r"path: .* does not exist"),
+    ("load_log ydata dir", lambda t, lg: load_log(_folder(t, ydata=None)), r"path: .*ydata.csv is a directory"),
+    ("load_log empty csv", lambda t, lg: load_log(_folder(t, ydata="")), r"ydata: .* is empty"),
+    ("load_log blank csv", lambda t, lg: load_log(_folder(t, tvec="\n\n")), r"tvec: .* is empty"),
+    ("load_log text csv", lambda t, lg: load_log(_folder(t, ydata="hello\n")), r"ydata: .* is not a numeric CSV"),
+    ("load_log binary csv", lambda t, lg: (lambda f: ((f / "Qtrue.csv").write_bytes(b"\xff\xfe\x00"), load_log(f)))(
+        _folder(t)), r"Qtrue: .* not a numeric CSV"),
+    ("load_log all nan", lambda t, lg: load_log(_folder(t, ydata=(",".join(["NaN"] * 11) + "\n") * 5)),
+     r"ydata holds no measurement"),
+    ("mat string", lambda t, lg: load_log(_mat(t, ydata="hello")), r"ydata must be a numeric matrix, got text"),
+    ("mat struct", lambda t, lg: load_log(_mat(t, ydata={"a": 1.0})), r"ydata must be a numeric matrix, got a struct"),
+    ("mat cell", lambda t, lg: load_log(_mat(t, Qtrue=np.array([np.eye(6), "x"], dtype=object))),
+     r"Qtrue must be a numeric matrix"),
+    ("mat complex", lambda t, lg: load_log(_mat(t, ydata=np.ones((5, 11)) * 1j)), r"ydata must hold real numbers"),
+    ("mat complex tvec", lambda t, lg: load_log(_mat(t, tvec=np.arange(11)[None, :] * (1 + 1j))), r"tvec must hold real"),
+    ("mat all nan", lambda t, lg: load_log(_mat(t, ydata=np.full((5, 11), np.nan))), r"ydata holds no measurement"),
+    ("mat huge", lambda t, lg: load_log(_mat(t, ydata=np.full((5, 11), 1e300))), r"ydata values must be at most 1e\+06"),
+    ("mat inf", lambda t, lg: load_log(_mat(t, ydata=np.full((5, 11), np.inf))), r"ydata"),
+    ("mat garbage", lambda t, lg: (lambda f: (f.write_bytes(b"garbage" * 50), load_log(f)))(t / "g.mat"),
+     r"path: .* is not a readable MATLAB file"),
+    ("write_log_csv into a file", lambda t, lg: write_log_csv(lg, _file(t)), r"folder: .* is an existing file"),
+    ("write_log_csv under a file", lambda t, lg: write_log_csv(lg, _file(t) / "sub"), r"folder: cannot write into"),
+    ("write_log_csv None", lambda t, lg: write_log_csv(lg, None), r"folder must be a directory path"),
+    ("write_log_csv not a log", lambda t, lg: write_log_csv("log", t / "x"), r"log must be a CoopLog"),
+    ("write_log_mat missing dir", lambda t, lg: write_log_mat(lg, t / "missing" / "x.mat"),
+     r"file: the folder .*missing does not exist"),
+    ("write_log_mat a dir", lambda t, lg: write_log_mat(lg, t), r"file: .* is a directory"),
+    ("write_log_mat None", lambda t, lg: write_log_mat(lg, None), r"file must be a file path"),
+]
+
+
+@pytest.mark.parametrize("call, match", [b[1:] for b in BAD], ids=[b[0] for b in BAD])
+def test_bad_values_raise_value_error_naming_the_argument(call, match, tmp_path, small_log):
+    with pytest.raises(ValueError, match=match) as info:
+        call(tmp_path, small_log)
+    assert type(info.value) is ValueError
+    assert "\n" not in str(info.value)  # the CLI shows it as one line
+
+
+def test_nothing_written_when_refused(tmp_path, small_log):
+    with pytest.raises(ValueError):
+        write_log_mat(small_log, tmp_path / "missing" / "x.mat")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_valid_edges_still_accepted(tmp_path, small_log):
+    """The checks refuse nonsense only: integral floats, bool masks, batches and the limits pass."""
+    assert np.allclose(phi_power(P, 40.0), phi_power(P, 40))
+    assert phi_power(P, np.arange(3)).shape == (3, 3, 3)
+    assert wrap_state(np.zeros((2, 6))).shape == (2, 6)
+    assert dynamics(np.zeros((3, 6)), U0).shape == (3, 6)
+    assert jacobian_C(X0).shape == (5, 6)
+    assert float(nees(np.ones(3), np.eye(3))) == pytest.approx(3.0)
+    assert CalibrationParams(omega=np.pi * 200.0).omega == pytest.approx(628.3185307)
+    assert P.replace(omega=0.5).omega == 0.5
+    mc = run_monte_carlo(n_runs=3, seed=np.int64(2), missing_fixes=_missing([149, 150]))  # 2 fixes, 3 runs
+    assert np.all(np.isfinite(mc.nees)) and mc.checks()["residual_independence"].statistic.size == 4
+    assert run_monte_carlo(n_runs=2, seed=None).n_runs == 2
+    f = write_log_mat(small_log, tmp_path / "ok.mat")
+    assert np.array_equal(load_log(f).y, small_log.y, equal_nan=True)
+    assert write_log_csv(small_log, tmp_path / "new" / "deeper") == tmp_path / "new" / "deeper"

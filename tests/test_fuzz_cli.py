@@ -1,0 +1,537 @@
+"""Table-driven fuzz test of the command line: whatever a user types, one line on stderr and exit 2
+(or a clean run), never a traceback, a warning, a NaN in JSON, or a file left behind.
+
+Most rows call ``kfcal_helpers.cli.main(argv)`` in this process (fast); a real process is used only
+where it matters: Ctrl-C (SIGINT), a closed stdout, files the user cannot read or write (run as
+the unprivileged user ``nobody`` when the tests run as root), and the peak memory of a run.
+"""
+
+import json
+import math
+import os
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.io import savemat
+
+import kfcal_helpers.figures as figures_module
+from kfcal_helpers.calibration import cli as calibration_cli
+from kfcal_helpers.calibration.params import CalibrationParams
+from kfcal_helpers.cli import main
+from kfcal_helpers.coop import CoopParams, generate_log, write_log_csv
+
+PROG = "python -m kfcal_helpers"
+MEMORY_LIMIT = 500e6  #: bytes, the issue's bound on the peak memory of any accepted run
+
+
+def _log_folder(root: Path, **change) -> Path:
+    """A small course-format CSV log folder; ``change`` replaces a file's text (or makes it a directory: None)."""
+    folder = root / "log"
+    write_log_csv(generate_log(CoopParams(duration=2.0), seed=1), folder)
+    for name, text in change.items():
+        f = folder / f"{name}.csv"
+        f.unlink()
+        if text is None:
+            f.mkdir()
+        else:
+            f.write_text(text)
+    return folder
+
+
+def _mat(root: Path, **change) -> Path:
+    lg = generate_log(CoopParams(duration=1.0), seed=1)
+    raw = {"ydata": lg.y.T, "tvec": lg.t[None, :], "Qtrue": lg.Qtrue, "Rtrue": lg.Rtrue}
+    raw.update(change)
+    savemat(root / "log.mat", raw)
+    return root / "log.mat"
+
+
+def _ydata_text(values) -> str:
+    return "\n".join(",".join("NaN" if np.isnan(v) else repr(float(v)) for v in row) for row in values) + "\n"
+
+
+def _huge(root):
+    y = generate_log(CoopParams(duration=2.0), seed=1).y.T.copy()
+    y[1, 5] = 1e300
+    return _log_folder(root, ydata=_ydata_text(y))
+
+
+def _all_nan(root):
+    return _log_folder(root, ydata=_ydata_text(np.full((5, 21), np.nan)))
+
+
+# (argv with {tmp} and the placeholders below, words the one stderr line must contain)
+BAD = [
+    # calibrate: outages
+    (["calibrate", "--runs", "3", "--outage", "0:30"], ["--outage", "at least 2"]),
+    (["calibrate", "--runs", "3", "--outage", "0:29.9"], ["--outage", "at least 2"]),
+    (["calibrate", "--runs", "3", "--outage", "0:15", "--outage", "15:30"], ["--outage", "at least 2"]),
+    (["calibrate", "--outage", "-5:3"], ["--outage", "outside [0, 30]"]),
+    (["calibrate", "--outage=-5:3"], ["--outage", "outside"]),
+    (["calibrate", "--outage", "5"], ["--outage", "START:END"]),
+    (["calibrate", "--outage", "a:b"], ["--outage", "START:END"]),
+    (["calibrate", "--outage", "10:5"], ["--outage", "START"]),
+    (["calibrate", "--outage", "0:31"], ["--outage", "outside"]),
+    (["calibrate", "--outage", "nan:3"], ["--outage", "finite"]),
+    (["calibrate", "--outage"], ["--outage", "expected one argument"]),
+    # calibrate: sizes, memory, time
+    (["calibrate", "--runs", str(10**30)], ["--runs", "h", "use fewer"]),
+    (["calibrate", "--runs", "1000000000"], ["--runs", "h", "more than the 1 h"]),
+    (["calibrate", "--runs", "200000", "--engine", "filterpy"], ["--runs", "h"]),
+    (["calibrate", "--gps-rate", "200"], ["--gps-rate", "MB", "500 MB"]),
+    (["calibrate", "--imu-rate", "1e7"], ["--imu-rate", "MB"]),
+    (["calibrate", "--duration", "1e5"], ["--duration", "MB"]),
+    (["calibrate", "--gps-rate", "200", "--duration", "600"], ["--duration", "MB"]),
+    (["calibrate", "--gps-rate", "40", "--duration", "23", "--figures", "{tmp}/out"], ["--figures", "MB"]),
+    (["calibrate", "--duration", "1e300"], ["--duration", "IMU samples"]),
+    (["calibrate", "--imu-rate", "1e-300", "--gps-rate", "1e-300", "--duration", "1e300"], ["--omega"]),
+    (["calibrate", "--runs", "-5"], ["--runs", ">= 2"]),
+    (["calibrate", "--runs", "1"], ["--runs", ">= 2"]),
+    (["calibrate", "--runs", "1e3"], ["--runs", "integer"]),
+    (["calibrate", "--runs", ""], ["--runs"]),
+    # calibrate: numbers
+    (["calibrate", "--omega", "1e308"], ["--omega", "at most"]),
+    (["calibrate", "--omega", "1e308", "--json"], ["--omega", "at most"]),
+    (["calibrate", "--omega", "1e160", "--truth", "analytic"], ["--omega", "at most"]),
+    (["calibrate", "--omega", "-inf"], ["--omega", "> 0"]),
+    (["calibrate", "--omega", "-1e5"], ["--omega", "> 0"]),
+    (["calibrate", "--omega", "inf"], ["--omega", "> 0"]),
+    (["calibrate", "--omega", "nan"], ["--omega"]),
+    (["calibrate", "--omega", "0"], ["--omega"]),
+    (["calibrate", "--omega", "fast"], ["--omega"]),
+    (["calibrate", "--imu-rate", "0"], ["--imu-rate"]),
+    (["calibrate", "--imu-rate", "-200"], ["--imu-rate"]),
+    (["calibrate", "--gps-rate", "3"], ["--gps-rate", "divide"]),
+    (["calibrate", "--gps-rate", "400"], ["--gps-rate", "divide"]),
+    (["calibrate", "--duration", "-1"], ["--duration"]),
+    (["calibrate", "--duration", "0.1"], ["--duration", "GPS period"]),
+    (["calibrate", "--duration", "30.001"], ["--duration", "IMU periods"]),
+    (["calibrate", "--seed", "-1"], ["--seed", "0 to 2**63 - 1"]),
+    (["calibrate", "--seed", "1.5"], ["--seed"]),
+    (["calibrate", "--seed", "x"], ["--seed"]),
+    (["calibrate", "--seed", str(2**64)], ["--seed"]),
+    (["calibrate", "--engine", "gpu"], ["--engine"]),
+    (["calibrate", "--truth", "rk4"], ["--truth"]),
+    (["calibrate", "--bogus"], ["--bogus"]),
+    (["calibrate", "extra"], ["extra"]),
+    # calibrate --figures
+    (["calibrate", "--runs", "200000", "--figures", "{file}"], ["--figures", "existing file"]),
+    (["calibrate", "--runs", "200000", "--figures", "{file}/sub"], ["--figures", "is a file"]),
+    (["calibrate", "--runs", "200000", "--figures", ""], ["--figures"]),
+    # coop
+    (["coop", "--seed", "-1"], ["--seed"]),
+    (["coop", "--seed", "abc"], ["--seed"]),
+    (["coop", "--q-scale", "1e308"], ["--q-scale", "1e+06"]),
+    (["coop", "--q-scale", "-1"], ["--q-scale"]),
+    (["coop", "--q-scale", "nan"], ["--q-scale"]),
+    (["coop", "--q-scale", "inf"], ["--q-scale"]),
+    (["coop", "--q-scale", "0"], ["--q-scale"]),
+    (["coop", "--q-scale", "big"], ["--q-scale"]),
+    (["coop", "--runs", "0"], ["--runs"]),
+    (["coop", "--runs", "1000000"], ["--runs", "10000"]),
+    (["coop", "--runs", "2", "--q-scale", "auto"], ["auto"]),
+    (["coop", "--runs", "2", "--log", "{tmp}"], ["--runs"]),
+    (["coop", "--every", "0"], ["--every"]),
+    (["coop", "--every", "x"], ["--every"]),
+    (["coop", "--every", "100000"], ["measurement"]),
+    (["coop", "--alpha", "0"], ["--alpha"]),
+    (["coop", "--alpha", "1"], ["--alpha"]),
+    (["coop", "--alpha", "nan"], ["--alpha"]),
+    (["coop", "--filter", "pf"], ["--filter"]),
+    (["coop", "--log", "{tmp}/missing"], ["--log", "does not exist"]),
+    (["coop", "--log", "{file}"], ["--log", ".mat"]),
+    (["coop", "--log", "{log_ydata_dir}"], ["--log", "is a directory"]),
+    (["coop", "--log", "{log_no_rtrue}"], ["--log", "Rtrue.csv is missing"]),
+    (["coop", "--log", "{log_empty}"], ["ydata", "empty"]),
+    (["coop", "--log", "{log_text}"], ["ydata", "not a numeric CSV"]),
+    (["coop", "--log", "{log_all_nan}"], ["ydata", "no measurement"]),
+    (["coop", "--log", "{log_huge}"], ["ydata", "at most 1e+06"]),
+    (["coop", "--log", "{mat_string}"], ["ydata", "numeric", "text"]),
+    (["coop", "--log", "{mat_struct}"], ["ydata", "numeric", "struct"]),
+    (["coop", "--log", "{mat_complex}"], ["ydata", "real numbers"]),
+    (["coop", "--log", "{mat_garbage}"], ["--log", "not a readable MATLAB file"]),
+    # figures
+    (["figures", "{file}"], ["DIR", "existing file"]),
+    (["figures", "{file}/sub"], ["DIR", "is a file"]),
+    (["figures"], ["DIR"]),
+    (["figures", "{tmp}/out", "--only", "no_such_figure"], ["--only"]),
+    (["figures", "{tmp}/out", "--only"], ["--only"]),
+    (["figures", "{tmp}/out", "--bogus"], ["--bogus"]),
+    # top level
+    ([], ["command"]),
+    (["simulate"], ["simulate"]),
+]
+
+
+def _placeholders(tmp: Path) -> dict:
+    (tmp / "file.png").write_text("not a directory")
+    (tmp / "garbage.mat").write_bytes(b"\x00not a MATLAB file" * 10)
+    lazy = {
+        "log_ydata_dir": lambda d: _log_folder(d, ydata=None),
+        "log_no_rtrue": lambda d: (lambda f: ((f / "Rtrue.csv").unlink(), f)[1])(_log_folder(d)),
+        "log_empty": lambda d: _log_folder(d, ydata=""),
+        "log_text": lambda d: _log_folder(d, ydata="hello,world\n"),
+        "log_all_nan": _all_nan,
+        "log_huge": _huge,
+        "mat_string": lambda d: _mat(d, ydata="hello"),
+        "mat_struct": lambda d: _mat(d, ydata={"a": np.ones(3), "b": "x"}),
+        "mat_complex": lambda d: _mat(d, ydata=generate_log(CoopParams(duration=1.0), seed=1).y.T * (1 + 1j)),
+    }
+    return {"tmp": str(tmp), "file": str(tmp / "file.png"), "mat_garbage": str(tmp / "garbage.mat"), **lazy}
+
+
+def _expand(argv, tmp: Path) -> list:
+    values = _placeholders(tmp)
+    out = []
+    for a in argv:
+        for key, value in values.items():
+            if "{" + key + "}" in a:
+                if callable(value):
+                    sub = tmp / key
+                    sub.mkdir(exist_ok=True)
+                    value = str(value(sub))
+                a = a.replace("{" + key + "}", value)
+        out.append(a)
+    return out
+
+
+def _files(root: Path) -> set:
+    return {p.relative_to(root) for p in root.rglob("*")}
+
+
+def _run(argv, capsys):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _one_error_line(err: str, command: str | None):
+    assert err.endswith("\n") and err.count("\n") == 1, err
+    assert "Traceback" not in err and "Warning" not in err
+    # argparse reports arguments no sub-command knows from the top level
+    assert err.startswith(f"{PROG} {command}: error: " if command else "@") or err.startswith(f"{PROG}: error: "), err
+
+
+@pytest.mark.parametrize("argv, words", BAD, ids=[" ".join(a)[:60] or "(nothing)" for a, _ in BAD])
+def test_bad_input_one_line_exit_2(argv, words, tmp_path, capsys, monkeypatch):
+    """Exit 2, nothing on stdout, exactly one stderr line naming the option, no file written, and
+    the long work (the Monte Carlo) never started."""
+    argv = _expand(argv, tmp_path)
+    before = _files(tmp_path)
+
+    def no_monte_carlo(*a, **k):
+        raise AssertionError("the Monte Carlo started before the input was checked")
+
+    if "--every" not in argv:  # the only row that fails after reading its input
+        monkeypatch.setattr(calibration_cli, "run_monte_carlo", no_monte_carlo)
+    monkeypatch.setattr(figures_module, "FigureData", no_monte_carlo)
+    code, out, err = _run(argv, capsys)
+    assert code == 2 and out == ""
+    command = argv[0] if argv and argv[0] in ("calibrate", "coop", "figures") else None
+    _one_error_line(err, command)
+    for word in words:
+        assert word in err, (word, err)
+    assert _files(tmp_path) == before  # nothing written or left behind
+
+
+GOOD = [
+    ["calibrate", "--runs", "3", "--outage", "0:29.8"],  # 2 fixes left, 3 runs: was a RuntimeWarning
+    ["calibrate", "--runs", "2", "--outage", "0:29.8", "--json"],
+    ["calibrate", "--runs", "4", "--omega", "628", "--json"],  # just below the IMU's Nyquist frequency
+    ["calibrate", "--runs", "3", "--omega", "628", "--truth", "analytic", "--json"],
+    ["calibrate", "--runs", "2", "--seed", str(2**63 - 1), "--json"],
+    ["calibrate", "--runs", "5", "--gps-rate", "200", "--duration", "2", "--json"],
+    ["calibrate", "--runs", "3", "--engine", "filterpy", "--duration", "1", "--json"],
+    ["coop", "--seed", "0", "--json"],
+    ["coop", "--q-scale", "1e6", "--json"],
+    ["coop", "--q-scale", "1e-6", "--filter", "ukf", "--json"],
+    ["coop", "--runs", "1", "--alpha", "0.5", "--json"],
+]
+
+
+@pytest.mark.parametrize("argv", GOOD, ids=[" ".join(a) for a in GOOD])
+def test_edge_values_run_clean(argv, capsys):
+    """Valid edge values: exit 0, nothing on stderr (no warning), strict JSON without NaN."""
+    code, out, err = _run(argv, capsys)
+    assert code == 0 and err == "", err
+    if "--json" not in argv:
+        return
+    d = json.loads(out, parse_constant=lambda c: pytest.fail(f"{c} in JSON"))
+
+    def finite(v):
+        if isinstance(v, float):
+            assert math.isfinite(v)
+        elif isinstance(v, dict):
+            [finite(x) for x in v.values()]
+        elif isinstance(v, list):
+            [finite(x) for x in v]
+
+    finite(d)
+
+
+def test_json_is_strict_with_missing_fixes(capsys):
+    """NIS is undefined at missing fixes: the JSON holds null there, never NaN (allow_nan=False)."""
+    from kfcal_helpers.cli import dumps_json
+
+    assert dumps_json({"a": [1.0, float("nan")], "b": float("inf")}) == '{"a": [1.0, null], "b": null}'
+    code, out, _ = _run(["calibrate", "--runs", "3", "--outage", "5:10", "--json"], capsys)
+    assert code == 0 and "NaN" not in out and json.loads(out)["outages"] == [[5.0, 10.0]]
+
+
+def test_help_is_plain_text(capsys):
+    for argv in ([], ["calibrate"], ["coop"], ["figures"]):
+        code, out, err = _run([*argv, "--help"], capsys)
+        assert code == 0 and err == ""
+        assert "``" not in out and ":func:" not in out and ":data:" not in out, out
+    code, out, _ = _run(["--help"], capsys)
+    assert "python -m kfcal_helpers COMMAND" in out
+
+
+def test_calibrate_table_explains_its_columns(capsys):
+    code, out, _ = _run(["calibrate", "--runs", "20"], capsys)
+    assert code == 0
+    assert "inside:" in out and "worst:" in out and "FAIL when > 1" in out
+    assert "model-mismatch" not in out  # the consistent filter passes: no note
+
+
+def test_analytic_truth_fail_rows_are_labelled(capsys):
+    """--truth analytic with a fast acceleration fails some checks, and says that this is intended."""
+    code, out, _ = _run(["calibrate", "--runs", "200", "--truth", "analytic", "--omega", "5"], capsys)
+    assert code == 0 and "FAIL" in out
+    assert "intended model-mismatch demonstration" in out and "--truth analytic" in out
+
+
+def test_unwritable_output_refused_before_the_work(tmp_path, capsys, monkeypatch):
+    """In-process: a directory the user cannot write is refused before the Monte Carlo / the figures."""
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **k: False if Path(p) == tmp_path else real_access(p, mode, **k))
+
+    def no_work(*a, **k):
+        raise AssertionError("long work started")
+
+    monkeypatch.setattr(calibration_cli, "run_monte_carlo", no_work)
+    monkeypatch.setattr(figures_module, "FigureData", no_work)
+    for argv, word in ((["calibrate", "--figures", str(tmp_path / "out")], "--figures"),
+                       (["figures", str(tmp_path)], "DIR")):
+        code, out, err = _run(argv, capsys)
+        assert code == 2 and out == ""
+        _one_error_line(err, argv[0])
+        assert word in err and "cannot write into" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_failed_save_leaves_no_file(tmp_path, capsys, monkeypatch):
+    """A save that fails half-way (disk full, permission) leaves neither the file nor its temporary."""
+    import matplotlib.figure
+
+    def failing_savefig(self, fname, **kw):
+        Path(fname).write_bytes(b"\x89PNG partial")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", failing_savefig)
+    code, out, err = _run(["figures", str(tmp_path), "--only", "coop_paths"], capsys)
+    assert code == 2 and out == ""
+    _one_error_line(err, "figures")
+    assert "No space left on device" in err and "DIR" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unreadable_log_in_process(tmp_path, capsys, monkeypatch):
+    """A log file the user may not read: one line naming --log (simulated: open raises PermissionError)."""
+    import builtins
+
+    folder = _log_folder(tmp_path)
+    real_open = builtins.open
+
+    def guarded_open(file, *a, **k):
+        if Path(str(file)).name == "ydata.csv":
+            raise PermissionError(13, "Permission denied", str(file))
+        return real_open(file, *a, **k)
+
+    monkeypatch.setattr(builtins, "open", guarded_open)
+    code, out, err = _run(["coop", "--log", str(folder)], capsys)
+    assert code == 2 and out == ""
+    _one_error_line(err, "coop")
+    assert "--log: cannot read" in err and "ydata.csv: Permission denied" in err
+
+
+def test_errors_outside_value_checks_are_one_line(capsys, monkeypatch):
+    """The wrapper's last resorts: OSError, MemoryError, a numerical RuntimeWarning, Ctrl-C, a closed pipe."""
+    import warnings
+
+    import kfcal_helpers.cli as cli
+
+    def raising(exc):
+        def run(*a, **k):
+            if exc is RuntimeWarning:
+                warnings.warn("overflow encountered in square", RuntimeWarning)
+                return 0
+            raise exc
+        return run
+
+    for exc, code, words in ((PermissionError(13, "Permission denied", "x.png"), 2, ["x.png: Permission denied"]),
+                             (MemoryError(), 2, ["not enough memory"]),
+                             (RuntimeWarning, 2, ["numerical failure", "overflow"]),
+                             (KeyboardInterrupt(), 130, ["calibrate: interrupted"])):
+        monkeypatch.setattr(calibration_cli, "run", raising(exc))
+        got, out, err = _run(["calibrate"], capsys)
+        assert got == code and out == ""
+        assert err.count("\n") == 1 and "Traceback" not in err
+        for w in words:
+            assert w in err
+    monkeypatch.setattr(calibration_cli, "run", raising(BrokenPipeError()))
+    monkeypatch.setattr(cli, "_quiet_stdout", lambda: None)
+    got, out, err = _run(["calibrate"], capsys)
+    assert got == 141 and err == ""
+
+
+# ---------------------------------------------------------------------------
+# Real processes
+ENV = {**os.environ, "KFCAL_QUIET": "1"}
+
+
+def _proc(argv, **kw):
+    return subprocess.Popen([sys.executable, "-m", "kfcal_helpers", *argv], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=ENV, **kw)
+
+
+def _complete_png(path: Path) -> bool:
+    data = path.read_bytes()
+    return data[:8] == b"\x89PNG\r\n\x1a\n" and data[-8:-4] == b"IEND"
+
+
+def test_ctrl_c_one_line_exit_130(tmp_path):
+    """SIGINT while working (calibrate, coop, figures, side by side): exit 130, one stderr line, and
+    only complete files in the output folder, no temporary left."""
+    commands = [["calibrate", "--runs", "300000"], ["coop", "--runs", "5000"], ["figures", str(tmp_path)]]
+    procs = [_proc(argv) for argv in commands]
+    time.sleep(4.0)  # past the interpreter's start (the handler is set first thing in main)
+    for p in procs:
+        p.send_signal(signal.SIGINT)
+    for argv, p in zip(commands, procs):
+        out, err = p.communicate(timeout=60)
+        assert p.returncode == 130, (argv, err)
+        assert err == f"{PROG} {argv[0]}: interrupted\n"
+    for f in tmp_path.iterdir():  # figures: what is there is whole, no temporary is left
+        assert f.suffix == ".png" and not f.name.startswith(".") and _complete_png(f), f.name
+
+
+@pytest.mark.parametrize("argv", [["calibrate", "--runs", "3"], ["coop"], ["figures", "--list"]],
+                         ids=["calibrate", "coop", "figures"])
+def test_closed_stdout_exits_quietly(argv):
+    """``| head -1`` closes the pipe: no BrokenPipeError traceback, nothing on stderr, exit 141."""
+    p = subprocess.Popen([sys.executable, "-m", "kfcal_helpers", *argv], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, env=ENV)
+    p.stdout.close()
+    err = p.stderr.read()
+    p.wait(timeout=60)
+    assert p.returncode == 141 and err == b"", err
+
+
+def _as_nobody():
+    """argv prefix running a command as the unprivileged user nobody, or None."""
+    if os.geteuid() != 0:
+        return []
+    setpriv = shutil.which("setpriv")
+    try:
+        import pwd
+
+        nobody = pwd.getpwnam("nobody")
+    except (ImportError, KeyError):
+        return None
+    if setpriv is None:
+        return None
+    return [setpriv, f"--reuid={nobody.pw_uid}", f"--regid={nobody.pw_gid}", "--clear-groups"]
+
+
+def test_unreadable_and_unwritable_files_real_process():
+    """Real permissions (as user nobody when running as root): an unreadable ydata.csv, and output
+    folders that cannot be written, refused in one line before any long work."""
+    prefix = _as_nobody()
+    if prefix is None:
+        pytest.skip("running as root without setpriv or the user nobody: the in-process tests cover this")
+    import matplotlib
+
+    root = Path(tempfile.mkdtemp(prefix="kfcal-perm-"))
+    try:
+        root.chmod(0o755)
+        mpl = root / "mpl"
+        shutil.copytree(matplotlib.get_cachedir(), mpl)  # no "building the font cache" line
+        os.chmod(mpl, 0o777)
+        for f in mpl.rglob("*"):
+            f.chmod(0o777)
+        folder = _log_folder(root)
+        (folder / "ydata.csv").chmod(0)
+        ro = root / "ro"
+        ro.mkdir()
+        ro.chmod(0o555)
+        env = {**ENV, "MPLCONFIGDIR": str(mpl), "HOME": str(root)}
+        for argv, words in ((["coop", "--log", str(folder)], ["--log: cannot read", "Permission denied"]),
+                            (["calibrate", "--runs", "200000", "--figures", str(ro / "x")],
+                             ["--figures: cannot write into"]),
+                            (["figures", str(ro)], ["DIR: cannot write into"])):
+            t0 = time.perf_counter()
+            r = subprocess.run([*prefix, sys.executable, "-m", "kfcal_helpers", *argv], capture_output=True,
+                               text=True, env=env, cwd=root, timeout=120)
+            assert r.returncode == 2 and r.stdout == "", r.stderr
+            _one_error_line(r.stderr, argv[0])
+            for w in words:
+                assert w in r.stderr
+            assert time.perf_counter() - t0 < 20  # refused before the work
+        assert list(ro.iterdir()) == []
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+PEAK_CASES = [  # near the largest accepted sizes: many GPS fixes; many IMU samples; figures on top
+    ["--gps-rate", "40", "--duration", "26", "--runs", "5"],
+    ["--imu-rate", "20000", "--duration", "95", "--gps-rate", "1", "--runs", "3"],
+    ["--gps-rate", "40", "--duration", "21.25", "--runs", "5", "--figures", "{tmp}"],
+]
+
+
+@pytest.mark.parametrize("args", PEAK_CASES, ids=["fixes", "samples", "figures"])
+def test_peak_memory_of_the_largest_accepted_runs(args, tmp_path):
+    """The largest runs the estimate accepts stay under MEMORY_LIMIT (resident peak of the process),
+    and a slightly larger one is refused with its estimate."""
+    args = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    code = ("import resource, sys; from kfcal_helpers.cli import main; rc = main(sys.argv[1:]); "
+            "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr); sys.exit(rc)")
+    r = subprocess.run([sys.executable, "-c", code, "calibrate", *args], capture_output=True, text=True, env=ENV,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    peak = int(r.stderr.strip().splitlines()[-1]) * 1024  # ru_maxrss is in KiB on Linux
+    assert peak <= MEMORY_LIMIT, f"peak {peak / 1e6:.0f} MB"
+    # one step larger is refused, before the work
+    i = args.index("--duration")
+    bigger = list(args)
+    bigger[i + 1] = str(float(args[i + 1]) * 1.1)
+    t0 = time.perf_counter()
+    assert main(["calibrate", *bigger]) == 2
+    assert time.perf_counter() - t0 < 5
+
+
+def test_estimate_bounds_chunks_and_refuses():
+    """The chunk size follows one realization's size: 500 for the SPEC's scenario, fewer for long ones."""
+    from kfcal_helpers.calibration import montecarlo
+    from kfcal_helpers.calibration.montecarlo import CHUNK_SIZE, chunk_size, estimate_run
+
+    assert montecarlo.MEMORY_LIMIT == MEMORY_LIMIT
+
+    assert chunk_size(CalibrationParams()) == CHUNK_SIZE == 500
+    long = CalibrationParams(imu_rate=2000.0, duration=300.0, gps_rate=1.0)
+    assert 1 <= chunk_size(long) < 50
+    peak, seconds = estimate_run(long, 100)
+    assert peak <= MEMORY_LIMIT and seconds > 0
+    with pytest.raises(ValueError, match=r"n_runs: 1000000000 realizations .* about \d+ h"):
+        estimate_run(CalibrationParams(), 10**9)
+    with pytest.raises(ValueError, match=r"params: one realization .* about \d+ MB"):
+        estimate_run(CalibrationParams(gps_rate=200.0), 2)
