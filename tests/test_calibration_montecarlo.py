@@ -158,3 +158,10 @@ def test_residual_correlation_band_has_its_level(n_runs):
         half = fake.bands(level)["residual_independence"][3].max()
         exact = np.sqrt(stats.beta.ppf(1 - level, 0.5, (n_runs - 1) / 2))
         assert np.isclose(half, exact, rtol=1e-9), (level, half, exact)
+
+
+def test_between_fixes_check_refuses_when_every_sample_is_a_fix():
+    params = CalibrationParams(gps_rate=200.0, duration=2.0)
+    mc = run_monte_carlo(params, n_runs=5, seed=0, between_fixes=True)
+    with pytest.raises(ValueError, match="between_fixes_check: every IMU sample is a GPS fix"):
+        mc.between_fixes_check()

@@ -218,6 +218,9 @@ class MonteCarloResult:
         b = self.between
         off = np.ones(self.params.n_imu, bool)
         off[self.params.fix_indices] = False
+        if not off.any():
+            raise ValueError("between_fixes_check: every IMU sample is a GPS fix (GPS rate = IMU rate), "
+                             "so there is nothing between fixes to check")
         var = np.einsum("jaa->ja", b.e_cov)[off]
         Pkk = np.einsum("jaa->ja", b.P)[off]
         N = self.n_runs
