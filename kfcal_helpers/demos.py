@@ -21,6 +21,9 @@ the compute functions on their own.
 The figure classes build their figure once and :meth:`update` only replaces the data, so a
 redraw costs one render; :func:`figure_png` turns it into the PNG an ``ipywidgets.Image``
 shows, and :func:`calibration_controls` / :func:`coop_controls` build the sliders.
+:class:`LiveDemo` puts the controls in a column beside the image (the whole demo fits a 1280x800
+window) and redraws on every change; a setting that cannot be computed (e.g. the UKF's covariance
+losing positive definiteness) shows a one-line message in the image's place, never a traceback.
 """
 
 from __future__ import annotations
@@ -722,7 +725,8 @@ class LiveDemo:
         try:
             png, line, ok = self.render()
         except Exception as error:  # a live demo never shows a traceback; say what happened in one line
-            line = f"unexpected error, nothing drawn: {type(error).__name__}: {error}"
+            text = " ".join(str(error).split())[:80]
+            line = f"unexpected error, nothing drawn: {type(error).__name__}: {text}"
             png, ok = self._message_png(self.values(), line), False
         self.failed = not ok
         self.image.value = png
