@@ -319,6 +319,23 @@ def _checkbox(panel, description):
     pytest.fail(f"no checkbox {description!r}")
 
 
+def _ukf_at_large_q(driver, panel, image):
+    """Notebook 18: the UKF with Q / Qtrue at the slider's end and without the bearing UGV->UAV,
+    where the UKF has lost positive definiteness: a figure or a one-line message, no traceback."""
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+
+    ukf = [b for b in panel.find_elements(By.CSS_SELECTOR, ".widget-toggle-button") if b.text.strip() == "UKF"]
+    assert ukf, "no UKF button"
+    _round_trip(driver, image, ukf[0].click, "a click on UKF")
+    _round_trip(driver, image, lambda: _slider_handle(panel, "Q / Qtrue").send_keys(Keys.END), "End on Q / Qtrue")
+    _round_trip(driver, image, _checkbox(panel, "bearing UGV→UAV").click, "unticking the bearing UGV→UAV")
+    line = panel.find_element(By.CSS_SELECTOR, ".widget-html").text.strip()
+    assert "\n" not in line and (line.startswith("UKF, Q = 100 Qtrue, 4 measurements") or "positive definite" in line
+                                  or "not finite" in line), line
+    return line
+
+
 def _drive(driver, lab, nb, slider, checkbox, roundtrips):
     from selenium.webdriver.common.keys import Keys
 
@@ -334,6 +351,9 @@ def _drive(driver, lab, nb, slider, checkbox, roundtrips):
         box = _checkbox(panel, checkbox)
         clicks = [_round_trip(driver, image, box.click, f"a click on {checkbox!r}") for _ in range(2)]
         assert box.is_selected()  # unticked, then ticked again
+        if nb == "18":
+            roundtrips["notebook 18: line shown for the UKF at Q / Qtrue 100 without the bearing UGV->UAV"] = \
+                _ukf_at_large_q(driver, panel, image)
         _no_errors(driver, panel, f"after moving {slider!r} and clicking {checkbox!r} in {name}")
         _fits_window(driver, image)
         if os.environ.get("KFCAL_BROWSER_SCREENSHOTS"):  # to look at the demo as the test left it
