@@ -4,7 +4,9 @@ this test, headless Chromium driven through selenium as a person would use it.
 For each notebook: open it, run all cells from the Run menu, check that no cell shows an error
 or a warning, that the demo (controls and image) fits a 1280x800 window, then press an arrow key
 on a slider and tick a checkbox with the mouse, and check that the image changes and still no
-error appears.  The round trip from the key press or click to the new image (its ``load`` event,
+error appears; in notebook 18 also switch to the UKF, press End on the Q slider and untick the
+bearing UGV->UAV (where the UKF has lost positive definiteness): a figure or a one-line message,
+never a traceback.  The round trip from the key press or click to the new image (its ``load`` event,
 timed in the page) is written to ``benchmarks/browser_roundtrip.json`` (a per-run file, not
 committed).  On a failure a screenshot and the page's HTML go to ``build/browser_failures/``;
 ``KFCAL_BROWSER_SCREENSHOTS=DIR`` saves the last view of each demo there as well.
