@@ -35,6 +35,8 @@ from pathlib import Path
 
 import pytest
 
+from kfcal_helpers.demos import calibration_controls, coop_controls
+
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = {"17": "17_calibration_live_demo.ipynb", "18": "18_coop_live_demo.ipynb"}
 BENCH_FILE = ROOT / "benchmarks" / "browser_roundtrip.json"
@@ -327,13 +329,15 @@ def _ukf_at_large_q(driver, panel, image):
     from selenium.webdriver.common.by import By
     from selenium.webdriver.common.keys import Keys
 
+    c = coop_controls()
     ukf = [b for b in panel.find_elements(By.CSS_SELECTOR, ".widget-toggle-button") if b.text.strip() == "UKF"]
     assert ukf, "no UKF button"
     _round_trip(driver, image, ukf[0].click, "a click on UKF")
-    _round_trip(driver, image, lambda: _slider_handle(panel, "Q / Qtrue").send_keys(Keys.END), "End on Q / Qtrue")
-    _round_trip(driver, image, _checkbox(panel, "bearing UGV→UAV").click, "unticking the bearing UGV→UAV")
+    _round_trip(driver, image, lambda: _slider_handle(panel, c["q_scale"].description).send_keys(Keys.END),
+                "End on the Q slider")
+    _round_trip(driver, image, _checkbox(panel, c["m0"].description).click, "unticking the bearing UGV->UAV")
     line = panel.find_element(By.CSS_SELECTOR, ".widget-html").text.strip()
-    assert "\n" not in line and (line.startswith("UKF, Q = 100 Qtrue, 4 measurements") or "positive definite" in line
+    assert "\n" not in line and (line.startswith("UKF, Q = 100 Qtrue") or "positive definite" in line
                                   or "not finite" in line), line
     return line
 
@@ -367,8 +371,10 @@ def _drive(driver, lab, nb, slider, checkbox, roundtrips):
 
 
 def test_calibration_demo_in_the_browser(lab, browser, roundtrips):
-    _drive(browser, lab, "17", "IMU noise W [(m/s²)²]", "GPS outage", roundtrips)
+    c = calibration_controls()
+    _drive(browser, lab, "17", c["W"].description, c["outage_on"].description, roundtrips)
 
 
 def test_coop_demo_in_the_browser(lab, browser, roundtrips):
-    _drive(browser, lab, "18", "Q / Qtrue", "range", roundtrips)
+    c = coop_controls()
+    _drive(browser, lab, "18", c["q_scale"].description, c["m1"].description, roundtrips)
