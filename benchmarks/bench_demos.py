@@ -11,7 +11,12 @@ Each setting is timed ``--repeat`` times; the table shows the best and the media
 machine is shared: the best is the cost of the work, the median what a student sees under
 load).  Target: the calibration redraw (compute + draw) under 100 ms for every setting of
 the sliders (GPS up to 25 Hz), judged on the best time; the 50 Hz row (not on the slider)
-is for information.  Exit status 1 if the target is missed.
+is for information.  Exit status 1 if the target is missed.  The figures have the live views'
+size (``LIVE_FIGSIZE``).
+
+What a person sees in the browser adds the widget messages and the image's decoding: the round
+trip from a key press on a slider to the new image in JupyterLab + headless Chromium is measured
+by ``tests/test_browser_demos.py``, which writes it to ``benchmarks/browser_roundtrip.json``.
 """
 
 from __future__ import annotations
@@ -32,8 +37,8 @@ import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from kfcal_helpers.coop import TUNED_Q_SCALE, generate_log  # noqa: E402
-from kfcal_helpers.demos import (CalibrationDemoFigure, CoopDemoFigure, compute_calibration_demo,  # noqa: E402
-                                 compute_coop_demo, figure_png)
+from kfcal_helpers.demos import (LIVE_FIGSIZE, CalibrationDemoFigure, CoopDemoFigure,  # noqa: E402
+                                 compute_calibration_demo, compute_coop_demo, figure_png)
 from kfcal_helpers.style import use_style  # noqa: E402
 
 TARGET_MS = 100.0
@@ -91,7 +96,7 @@ def main(argv=None) -> int:
 
     print(f"\nCalibration demo: one 200 Hz realization + {args.runs}-realization ensemble")
     print(HEADER)
-    view = CalibrationDemoFigure(Figure(figsize=(9.0, 7.2)))
+    view = CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE["calibration"]))  # the live view's size
     compute_calibration_demo(n_runs=args.runs)  # warm-up: imports, caches
     worst = 0.0
     for name, kw in CALIBRATION_SETTINGS:
@@ -108,7 +113,7 @@ def main(argv=None) -> int:
     print("\nCooperative-localization demo: one filter run on the 1001-sample log")
     print(HEADER)
     log = generate_log()
-    cview = CoopDemoFigure(Figure(figsize=(11.0, 5.4)))
+    cview = CoopDemoFigure(Figure(figsize=LIVE_FIGSIZE["coop"]))
     for name, kw in COOP_SETTINGS:
         demo = compute_coop_demo(log, **kw)
         cview.update(demo)

@@ -21,6 +21,9 @@ the compute functions on their own.
 The figure classes build their figure once and :meth:`update` only replaces the data, so a
 redraw costs one render; :func:`figure_png` turns it into the PNG an ``ipywidgets.Image``
 shows, and :func:`calibration_controls` / :func:`coop_controls` build the sliders.
+:class:`LiveDemo` puts the controls in a column beside the image (the whole demo fits a 1280x800
+window) and redraws on every change; a setting that cannot be computed (e.g. the UKF's covariance
+losing positive definiteness) shows a one-line message in the image's place, never a traceback.
 """
 
 from __future__ import annotations
@@ -60,6 +63,11 @@ __all__ = [
     "figure_png",
     "calibration_controls",
     "coop_controls",
+    "LIVE_FIGSIZE",
+    "DEMO_FAILURES",
+    "failure_message",
+    "describe_controls",
+    "LiveDemo",
 ]
 
 ENSEMBLES = ("fixes", "simulate")
@@ -366,7 +374,11 @@ class CalibrationDemoFigure:
     """
 
     def __init__(self, figure=None, t_zoom: float = 2.0):
-        self.t_zoom = require_finite("t_zoom", t_zoom)
+        t_zoom = require_finite("t_zoom", t_zoom)
+        if t_zoom < 0:
+            raise ValueError(f"t_zoom must be a time >= 0 s (the y axes are scaled to the curves after it), "
+                             f"got {t_zoom!r}")
+        self.t_zoom = t_zoom
         self.fig = _new_figure(figure, (9.0, 7.2))
         self.axes = self.fig.subplots(3, 1, sharex=True)
         self.lines = []
@@ -377,7 +389,7 @@ class CalibrationDemoFigure:
             ens_up, = ax.plot([], [], ".", color="C0", ms=3, label="ensemble $\\pm 2s$")
             ens_down, = ax.plot([], [], ".", color="C0", ms=3)
             self.lines.append((err, up, down, ens_up, ens_down))
-            ax.set_ylabel(_CAL_LABELS[k])
+            ax.set_ylabel(_CAL_LABELS[k], fontsize=9)
         self.legend = self.axes[0].legend(loc="upper right", ncol=3, fontsize=8)
         self.axes[-1].set_xlabel("time $t$ [s]")
         self.fig.subplots_adjust(left=0.1, right=0.98, bottom=0.08, top=0.94, hspace=0.3)
@@ -534,7 +546,7 @@ class CoopDemoFigure:
         for ax in self.axes[-1]:
             ax.set_xlabel("time $t$ [s]")
         self.axes[0, 0].legend(loc="upper right", fontsize=8)
-        self.fig.subplots_adjust(left=0.07, right=0.99, bottom=0.1, top=0.86, wspace=0.32, hspace=0.12)
+        self.fig.subplots_adjust(left=0.08, right=0.975, bottom=0.1, top=0.86, wspace=0.4, hspace=0.12)
 
     def update(self, demo: CoopDemo):
         """Draw ``demo`` into the figure; returns the Figure."""
@@ -579,6 +591,160 @@ def figure_png(fig) -> bytes:
     return buf.getvalue()
 
 
+#: figure sizes (inches, at the notebook style's 90 dpi) of the live views: with the controls in a
+#: column beside the image, the whole demo fits a 1280x800 browser window (tests/test_browser_demos.py)
+LIVE_FIGSIZE = {"calibration": (7.8, 5.4), "coop": (8.4, 4.9)}
+#: width of the controls' column
+CONTROLS_WIDTH = "350px"
+
+#: what a redraw turns into a one-line message instead of a traceback: ``numpy.linalg.LinAlgError``
+#: (a ValueError: a covariance that is no longer positive definite), any other ValueError (a value
+#: the filter or the draw cannot use), arithmetic faults, and warnings (raised as errors while a
+#: redraw runs, so a RuntimeWarning of an overflow never reaches the notebook)
+DEMO_FAILURES = (ValueError, ArithmeticError, Warning)
+
+#: the arrays of a demo that must be finite before it is drawn
+_FINITE_FIELDS = {CalibrationDemo: ("error", "sigma", "ens_std", "P_post"),
+                  CoopDemo: ("errors", "sigma2", "P", "nis_mean", "nees_mean")}
+
+
+def _require_finite_demo(demo) -> None:
+    for name in _FINITE_FIELDS.get(type(demo), ()):
+        if not np.all(np.isfinite(getattr(demo, name))):
+            raise ValueError(f"the result is not finite ({name} holds inf or NaN): the filter diverged")
+
+
+def failure_message(error: BaseException) -> str:
+    """One line that says why a redraw failed, for the figure area of a live demo."""
+    text = " ".join(str(error).split()) or type(error).__name__
+    if len(text) > 80:
+        text = text[:77] + "..."
+    if isinstance(error, np.linalg.LinAlgError):
+        return f"the filter failed: its covariance is no longer positive definite ({text})"
+    if isinstance(error, Warning):
+        return f"the computation overflowed or lost precision ({type(error).__name__}: {text})"
+    return f"cannot compute these settings: {text}"
+
+
+def _format_value(value) -> str:
+    if isinstance(value, (float, np.floating)):
+        return f"{value:.3g}"
+    if isinstance(value, tuple) and all(isinstance(v, (int, float, np.number)) for v in value):
+        return "–".join(f"{v:g}" for v in value)
+    return str(value)
+
+
+def describe_controls(controls: dict, values: dict | None = None) -> str:
+    """Settings of ``controls`` in one line (``values`` by name, default the controls' own):
+    ``description value`` for every control that is not a checkbox, then the descriptions of the
+    ticked checkboxes (or "none ticked")."""
+    import ipywidgets as w
+
+    values = {} if values is None else values
+    parts, ticked, boxes = [], [], 0
+    for name, c in controls.items():
+        value = values.get(name, c.value)
+        if isinstance(c, w.Checkbox):
+            boxes += 1
+            if value:
+                ticked.append(c.description)
+            continue
+        for option in getattr(c, "options", ()) if isinstance(c, (w.ToggleButtons, w.Dropdown)) else ():
+            if isinstance(option, tuple) and option[1] == value:
+                value = option[0]
+        parts.append(f"{c.description} {_format_value(value)}")
+    if boxes:
+        parts.append("on: " + (", ".join(ticked) if ticked else "none ticked"))
+    return "; ".join(parts)
+
+
+class LiveDemo:
+    """A live demo in the notebook: ``controls`` (a dict of ipywidgets, as
+    :func:`calibration_controls` / :func:`coop_controls` return) in a column beside an
+    ``ipywidgets.Image`` of ``view``'s figure, and one line of text under it.
+
+    A change of any control calls ``compute(**values)`` (the control values by name; it returns
+    a :class:`CalibrationDemo` or :class:`CoopDemo`, or None when there is nothing to draw),
+    puts the result into ``view`` (a :class:`CalibrationDemoFigure` or :class:`CoopDemoFigure`)
+    and shows its PNG; the line shows ``demo.summary()`` when the demo has one.  A redraw that
+    fails (:data:`DEMO_FAILURES`, e.g. the UKF's covariance losing positive definiteness, or a
+    result that is not finite) shows instead an image of the same size with the settings as its
+    title and a one-line message, so the title always matches what is drawn and no traceback or
+    warning appears.  ``empty`` is the message when ``compute`` returns None; ``hint`` (optional)
+    is appended to a failure message.
+    """
+
+    def __init__(self, controls: dict, compute, view, empty: str = "nothing to draw for these settings",
+                 hint: str = ""):
+        import ipywidgets as w
+
+        if not isinstance(controls, dict) or not controls:
+            raise ValueError("controls must be a non-empty dict of ipywidgets, e.g. calibration_controls()")
+        if not callable(compute):
+            raise ValueError(f"compute must be callable (control values -> demo), got {type(compute).__name__}")
+        if not isinstance(view, (CalibrationDemoFigure, CoopDemoFigure)):
+            raise ValueError(f"view must be a CalibrationDemoFigure or CoopDemoFigure, got {type(view).__name__}")
+        self.controls, self.compute, self.view, self.empty, self.hint = controls, compute, view, empty, hint
+        self.message_fig = Figure(figsize=view.fig.get_size_inches(), dpi=view.fig.dpi)
+        FigureCanvasAgg(self.message_fig)
+        self.image = w.Image(format="png")
+        self.line = w.HTML()
+        self.failed = False
+        column = w.VBox(list(controls.values()), layout=w.Layout(width=CONTROLS_WIDTH, flex="0 0 auto"))
+        self.widget = w.HBox([column, w.VBox([self.image, self.line])],
+                             layout=w.Layout(align_items="flex-start"))
+        for c in controls.values():
+            c.observe(self._changed, names="value")
+        self.refresh()
+
+    def values(self) -> dict:
+        """The controls' current values, by name."""
+        return {name: c.value for name, c in self.controls.items()}
+
+    def render(self, **values) -> tuple[bytes, str, bool]:
+        """One redraw for ``values`` (default: the controls' current values), without touching the
+        widgets: returns ``(png, line, ok)``; ``ok`` is False when the PNG shows a message."""
+        import warnings
+
+        values = {**self.values(), **values}
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                demo = self.compute(**values)
+                if demo is None:
+                    return self._message_png(values, self.empty), self.empty, False
+                _require_finite_demo(demo)
+                png = figure_png(self.view.update(demo))
+        except DEMO_FAILURES as error:
+            text = failure_message(error)
+            return self._message_png(values, text), text + (f"; {self.hint}" if self.hint else ""), False
+        return png, demo.summary() if hasattr(demo, "summary") else "", True
+
+    def refresh(self):
+        """Redraw for the controls' current values and show the result."""
+        import html
+
+        try:
+            png, line, ok = self.render()
+        except Exception as error:  # a live demo never shows a traceback; say what happened in one line
+            text = " ".join(str(error).split())[:80]
+            line = f"unexpected error, nothing drawn: {type(error).__name__}: {text}"
+            png, ok = self._message_png(self.values(), line), False
+        self.failed = not ok
+        self.image.value = png
+        self.line.value = f"<span style='font-size: 12px'>{html.escape(line)}</span>"
+
+    def _changed(self, change):
+        self.refresh()
+
+    def _message_png(self, values, text) -> bytes:
+        fig = self.message_fig
+        fig.clear()
+        fig.suptitle(f"{describe_controls(self.controls, values)}\nnot drawn", fontsize=9)
+        fig.text(0.5, 0.5, text, ha="center", va="center", fontsize=9, color="C3", wrap=True)
+        return figure_png(fig)
+
+
 def calibration_controls() -> dict:
     """The calibration demo's controls (ipywidgets), by name, at the default parameters.
 
@@ -588,8 +754,8 @@ def calibration_controls() -> dict:
     """
     import ipywidgets as w
 
-    style = {"description_width": "150px"}
-    layout = w.Layout(width="480px")
+    style = {"description_width": "140px"}
+    layout = w.Layout(width="340px")
     return {
         "gps_rate": w.SelectionSlider(options=valid_gps_rates(), value=5.0, description="GPS rate [Hz]",
                                       style=style, layout=layout),
@@ -615,11 +781,11 @@ def coop_controls() -> dict:
     style = {"description_width": "120px"}
     controls = {
         "filter": w.ToggleButtons(options=[("EKF", "ekf"), ("UKF", "ukf")], value="ekf", description="filter",
-                                  style=style),
+                                  style={**style, "button_width": "80px"}),
         "q_scale": w.FloatLogSlider(value=TUNED_Q_SCALE["ekf"], base=10, min=-2, max=2, step=0.1,
                                     readout_format=".3g", continuous_update=False, description="Q / Qtrue",
-                                    style=style, layout=w.Layout(width="480px")),
+                                    style=style, layout=w.Layout(width="340px")),
     }
     for i, name in enumerate(MEASUREMENT_NAMES):
-        controls[f"m{i}"] = w.Checkbox(value=True, description=name, indent=False, layout=w.Layout(width="170px"))
+        controls[f"m{i}"] = w.Checkbox(value=True, description=name, indent=False, layout=w.Layout(width="300px"))
     return controls

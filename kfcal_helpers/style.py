@@ -9,11 +9,13 @@ share this one definition.
 
 from __future__ import annotations
 
+import sys
+
 import matplotlib as mpl
 
 from .validation import require_choice
 
-__all__ = ["STYLES", "SLIDE_SIZE", "SLIDE_DPI", "style_params", "use_style"]
+__all__ = ["STYLES", "SLIDE_SIZE", "SLIDE_DPI", "INLINE_BACKEND", "style_params", "use_style"]
 
 #: width, height in inches of a slide figure; at SLIDE_DPI this is 1280 x 720 px (16:9)
 SLIDE_SIZE = (12.8, 7.2)
@@ -47,6 +49,31 @@ def style_params(target: str = "notebook") -> dict:
     return dict(STYLES[require_choice("target", target, tuple(STYLES))])
 
 
+#: the backend of figures shown in a Jupyter notebook (matplotlib-inline, installed with ipykernel)
+INLINE_BACKEND = "module://matplotlib_inline.backend_inline"
+
+
+def _jupyter_kernel_shell():
+    """The IPython shell when this runs in a Jupyter kernel (ipykernel), else None."""
+    if "IPython" not in sys.modules:
+        return None
+    from IPython import get_ipython
+
+    shell = get_ipython()
+    return shell if shell is not None and hasattr(shell, "kernel") else None
+
+
 def use_style(target: str = "notebook") -> None:
-    """Apply the collection's style (``"notebook"`` or ``"slides"``) to matplotlib's rcParams."""
-    mpl.rcParams.update(style_params(target))
+    """Apply the collection's style (``"notebook"`` or ``"slides"``) to matplotlib's rcParams.
+
+    In a Jupyter kernel it also selects the inline backend (``%matplotlib inline``) when another
+    one is set, e.g. by ``MPLBACKEND=Agg`` in the environment (ipykernel only chooses the inline
+    backend when ``MPLBACKEND`` is unset): the notebooks then show the same figures and outputs
+    whatever ``MPLBACKEND`` says.  For another backend, run ``%matplotlib ...`` after this call.
+    Outside a kernel (scripts, the command line, tests) the backend is left alone.
+    """
+    params = style_params(target)
+    shell = _jupyter_kernel_shell()
+    if shell is not None and mpl.get_backend(auto_select=False) not in (INLINE_BACKEND, "inline"):
+        shell.run_line_magic("matplotlib", INLINE_BACKEND)  # the name ipykernel gives it
+    mpl.rcParams.update(params)

@@ -14,10 +14,11 @@ from kfcal_helpers.calibration import (CalibrationParams, batch_filter, covarian
                                        outage_mask, run_filterpy, simulate)
 from kfcal_helpers.coop import (TUNED_Q_SCALE, CoopParams, generate_log, jacobian_A, jacobian_C, measure, measurement_residual,
                                 nominal_trajectory, run_filter, state_residual)
-from kfcal_helpers.demos import (MEASUREMENT_NAMES, CalibrationDemoFigure, CoopDemoFigure, calibration_controls,
-                                 compute_calibration_demo, compute_coop_demo, coop_controls, draw_calibration_demo,
-                                 draw_coop_demo, estimate_between_fixes, figure_png,
-                                 filter_errors_at_fixes, noise_of_simulation, sample_noise_at_fixes, valid_gps_rates)
+from kfcal_helpers.demos import (LIVE_FIGSIZE, MEASUREMENT_NAMES, CalibrationDemoFigure, CoopDemoFigure, LiveDemo,
+                                 calibration_controls, compute_calibration_demo, compute_coop_demo, coop_controls,
+                                 describe_controls, draw_calibration_demo, draw_coop_demo, estimate_between_fixes,
+                                 figure_png, filter_errors_at_fixes, noise_of_simulation, sample_noise_at_fixes,
+                                 valid_gps_rates)
 from kfcal_helpers.exercises import (check_demo_first_fix_sigma, check_demo_lost_directions, check_demo_ratio_band,
                                      check_demo_subset_nis_bounds)
 from kfcal_helpers.exercises.demos import HINTS
@@ -413,3 +414,206 @@ def test_check_18_2_lost_directions():
     assert not check_demo_lost_directions(...).answered and not check_demo_lost_directions([0, 2]).correct
     with pytest.raises(ValueError, match="window"):
         check_demo_lost_directions(counts, window=1)
+
+
+# ---------------------------------------------------------------------------
+# live demos: argument checks, layout, failures drawn as a one-line message
+def test_draw_calibration_demo_rejects_a_negative_t_zoom():
+    demo = compute_calibration_demo(n_runs=20)
+    for bad in (-1, -0.5, float("nan"), "2"):
+        with pytest.raises(ValueError, match="t_zoom"):
+            draw_calibration_demo(demo, t_zoom=bad)
+    assert len(draw_calibration_demo(demo, t_zoom=0.0).axes) == 3
+
+
+def calibration_demo_for(gps_rate=5.0, W=4e-4, gps_pos_sigma=1.0, bias_sigma=0.1, outage_on=True,
+                         outage=(12.0, 18.0)):
+    """Notebook 17's mapping of the controls to compute_calibration_demo."""
+    window = outage if outage_on and outage[0] < outage[1] else None
+    return compute_calibration_demo(gps_rate=gps_rate, W=W, gps_pos_var=gps_pos_sigma**2, bias_var=bias_sigma**2,
+                                    outage=window, n_runs=200, seed=17)
+
+
+def coop_demo_for(log):
+    """Notebook 18's mapping of the controls to compute_coop_demo, for ``log``."""
+    def demo_for(filter="ekf", q_scale=1.5, m0=True, m1=True, m2=True, m3=True, m4=True):
+        ticked = tuple(i for i, on in enumerate((m0, m1, m2, m3, m4)) if on)
+        return compute_coop_demo(log, filter, q_scale, measurements=ticked) if ticked else None
+    return demo_for
+
+
+def _coop_live(log):
+    return LiveDemo(coop_controls(), coop_demo_for(log), CoopDemoFigure(Figure(figsize=LIVE_FIGSIZE["coop"])),
+                    empty="tick at least one measurement", hint="try a smaller Q / Qtrue")
+
+
+def _png_size(png):
+    from PIL import Image
+    import io
+
+    return Image.open(io.BytesIO(png)).size
+
+
+def test_live_demo_shows_the_figure_and_follows_the_controls(log):
+    live = _coop_live(log)
+    assert not live.failed and "5 measurements" in live.line.value
+    first = live.image.value
+    assert _png_size(first) == tuple(round(s * live.view.fig.dpi) for s in LIVE_FIGSIZE["coop"])
+    live.controls["m1"].value = False  # untick the range: the observer recomputes and redraws
+    assert not live.failed and live.image.value != first
+    assert "4 measurements" in live.line.value and "range" not in live.view.fig.get_suptitle().split("\n")[0]
+    # the layout: controls in a column beside the image and the line under it
+    import ipywidgets as w
+
+    column, right = live.widget.children
+    assert isinstance(live.widget, w.HBox) and list(column.children) == list(live.controls.values())
+    assert list(right.children) == [live.image, live.line]
+
+
+@pytest.mark.parametrize("error, says", [
+    (np.linalg.LinAlgError("6-th leading minor of the array is not positive definite"),
+     "its covariance is no longer positive definite (6-th leading minor"),
+    (ValueError("Singular matrix"), "cannot compute these settings: Singular matrix"),
+    (FloatingPointError("overflow encountered"), "cannot compute these settings: overflow encountered"),
+    (RuntimeWarning("invalid value encountered in sqrt"), "(RuntimeWarning: invalid value encountered in sqrt)")])
+def test_a_failing_filter_draws_a_one_line_message(log, monkeypatch, error, says):
+    import warnings
+
+    import kfcal_helpers.demos as demos
+
+    live = _coop_live(log)
+    good = live.image.value
+
+    def fail(*args, **kwargs):
+        if isinstance(error, Warning):
+            warnings.warn(error)  # raised as an error inside a redraw, never shown
+            return run_filter(*args, **kwargs)
+        raise error
+
+    monkeypatch.setattr(demos, "run_filter", fail)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no warning may escape the redraw
+        live.controls["filter"].value = "ukf"
+        live.controls["q_scale"].value = 10 ** 0.5
+    assert live.failed
+    line = live.line.value
+    assert says in line
+    assert "Traceback" not in line and "\n" not in line and "try a smaller Q / Qtrue" in line
+    # the image: same size, no axes, the settings of the failed redraw as its title, one line of message
+    fig = live.message_fig
+    assert _png_size(live.image.value) == _png_size(good) and live.image.value != good
+    message = [t.get_text() for t in fig.texts if t.get_text() != fig.get_suptitle()]
+    assert not fig.axes and len(message) == 1 and "\n" not in message[0] and message[0] in line
+    title = fig.get_suptitle()
+    assert "filter UKF" in title and "Q / Qtrue 3.16" in title and "not drawn" in title
+    assert all(name in title for name in MEASUREMENT_NAMES)
+    # the next setting that works draws the filter again, under its own title
+    monkeypatch.undo()
+    live.controls["filter"].value = "ekf"
+    assert not live.failed and live.view.fig.get_suptitle().startswith("EKF, Q = 3.16 Qtrue")
+
+
+def test_non_finite_results_and_empty_subsets_draw_a_message(log, monkeypatch):
+    import dataclasses
+
+    live = _coop_live(log)
+    real = live.compute
+
+    def nan_errors(**values):
+        d = real(**values)
+        return dataclasses.replace(d, errors=np.full_like(d.errors, np.nan))
+
+    live.compute = nan_errors
+    live.refresh()
+    assert live.failed and "not finite" in live.line.value
+    live.compute = real
+    for i in range(5):
+        live.controls[f"m{i}"].value = False
+    assert live.failed and "tick at least one measurement" in live.line.value
+    assert "none ticked" in live.message_fig.get_suptitle()
+
+
+def test_an_unexpected_error_is_one_line_too(log):
+    live = _coop_live(log)
+
+    def broken(**values):
+        raise KeyError("x")
+
+    live.compute = broken
+    live.refresh()  # a live demo never shows a traceback
+    assert live.failed and "unexpected error" in live.line.value and "KeyError" in live.line.value
+    with pytest.raises(KeyError):
+        live.render()  # ... but the render path itself does not hide programming errors
+
+
+def test_live_demo_validates():
+    with pytest.raises(ValueError, match="controls"):
+        LiveDemo({}, calibration_demo_for, CalibrationDemoFigure(Figure()))
+    with pytest.raises(ValueError, match="compute"):
+        LiveDemo(calibration_controls(), None, CalibrationDemoFigure(Figure()))
+    with pytest.raises(ValueError, match="view"):
+        LiveDemo(calibration_controls(), calibration_demo_for, Figure())
+
+
+def test_describe_controls():
+    c = coop_controls()
+    c["m0"].value = c["m2"].value = False
+    assert describe_controls(c) == "filter EKF; Q / Qtrue 1.5; on: range, UAV GPS east, UAV GPS north"
+    assert describe_controls(c, {"filter": "ukf", "m1": False, "m3": False, "m4": False}).endswith("on: none ticked")
+    assert describe_controls(calibration_controls()) == ("GPS rate [Hz] 5; IMU noise W [(m/s²)²] 0.0004; GPS σ_p [m] 1; "
+                                                         "bias prior σ [m/s²] 0.1; outage window [s] 12–18; on: GPS outage")
+
+
+def _check_render(live, values):
+    """One redraw of the grid: never raises or warns; the title matches what is drawn."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        png, line, ok = live.render(**values)
+    assert png[:4] == b"\x89PNG" and "\n" not in line
+    assert _png_size(png) == tuple(round(s * live.view.fig.dpi) for s in live.view.fig.get_size_inches())
+    if not ok:
+        assert describe_controls(live.controls, values) in live.message_fig.get_suptitle()
+    return ok
+
+
+#: slider positions (the ends, the default, and 2.51 and 3.16, where the UKF lost positive definiteness
+#: without the bearing UGV->UAV and with the GPS alone) and measurement subsets of the grid
+COOP_Q_POSITIONS = (0.01, 1.0, 10 ** 0.4, 10 ** 0.5, 100.0)
+COOP_SUBSETS = {"all five": (0, 1, 2, 3, 4), "no bearing UGV->UAV": (1, 2, 3, 4), "GPS only": (3, 4)}
+
+
+@pytest.mark.parametrize("filter", ["ekf", "ukf"])
+def test_coop_demo_over_a_grid_of_controls(log, filter):
+    live = _coop_live(log)
+    positions = COOP_Q_POSITIONS if filter == "ukf" else (0.01, 100.0)
+    outcome = {}
+    for q in positions:
+        for label, subset in COOP_SUBSETS.items():
+            values = {"filter": filter, "q_scale": q, **{f"m{i}": i in subset for i in range(5)}}
+            ok = outcome[q, label] = _check_render(live, values)
+            if ok:
+                title = live.view.fig.get_suptitle()
+                assert title.startswith(f"{filter.upper()}, Q = {q:.3g} Qtrue, measurements: "
+                                        + ", ".join(MEASUREMENT_NAMES[i] for i in subset) + "\n")
+    print(filter, "combinations not drawn:", [k for k, ok in outcome.items() if not ok])
+    assert filter == "ekf" or outcome[1.0, "all five"]  # the UKF's tuned defaults draw
+
+
+def test_calibration_demo_over_a_grid_of_controls():
+    live = LiveDemo(calibration_controls(), calibration_demo_for,
+                    CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE["calibration"])))
+    c = live.controls
+    corners = [{"W": c["W"].min, "gps_pos_sigma": c["gps_pos_sigma"].min, "bias_sigma": c["bias_sigma"].min},
+               {"W": c["W"].max, "gps_pos_sigma": c["gps_pos_sigma"].max, "bias_sigma": c["bias_sigma"].max}]
+    outages = [(False, (12.0, 18.0)), (True, (0.0, 30.0)), (True, (0.0, 0.5)), (True, (29.5, 30.0)),
+               (True, (10.0, 10.0))]
+    for rate in (c["gps_rate"].options[0], c["gps_rate"].options[-1]):
+        for corner in corners:
+            for on, window in outages:
+                values = {"gps_rate": rate, **{k: 10.0 ** v for k, v in corner.items()}, "outage_on": on,
+                          "outage": window}
+                if _check_render(live, values):
+                    title = live.view.axes[0].get_title()
+                    assert f"GPS {rate:g} Hz" in title and (("outage" in title) == (on and window[0] < window[1]))

@@ -1,0 +1,380 @@
+"""The live demos (notebooks 17 and 18) in a real browser: JupyterLab started on localhost for
+this test, headless Chromium driven through selenium as a person would use it.
+
+For each notebook: open it, run all cells from the Run menu, check that no cell shows an error
+or a warning, that the demo (controls and image) fits a 1280x800 window, then press an arrow key
+on a slider and tick a checkbox with the mouse, and check that the image changes and still no
+error appears; in notebook 18 also switch to the UKF, press End on the Q slider and untick the
+bearing UGV->UAV (where the UKF has lost positive definiteness): a figure or a one-line message,
+never a traceback.  The round trip from the key press or click to the new image (its ``load`` event,
+timed in the page) is written to ``benchmarks/browser_roundtrip.json`` (a per-run file, not
+committed).  On a failure a screenshot and the page's HTML go to ``build/browser_failures/``;
+``KFCAL_BROWSER_SCREENSHOTS=DIR`` saves the last view of each demo there as well.
+
+Needs Chromium and chromedriver (Debian: ``apt-get install chromium chromium-driver``); the test
+is skipped, with the reason, when they are not found.  Set ``KFCAL_CHROMIUM`` /
+``KFCAL_CHROMEDRIVER`` to use other binaries.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+import platform
+import secrets
+import shutil
+import socket
+import statistics
+import subprocess
+import sys
+import time
+import urllib.request
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+from kfcal_helpers.demos import calibration_controls, coop_controls
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOKS = {"17": "17_calibration_live_demo.ipynb", "18": "18_coop_live_demo.ipynb"}
+BENCH_FILE = ROOT / "benchmarks" / "browser_roundtrip.json"
+FAILURES = ROOT / "build" / "browser_failures"
+WINDOW = (1280, 800)
+KEY_PRESSES = 4  # slider steps timed per notebook
+
+
+def _binary(env: str, *names: str) -> str | None:
+    if os.environ.get(env):
+        return os.environ[env] if os.access(os.environ[env], os.X_OK) else None
+    for name in names:
+        found = shutil.which(name)
+        if found:
+            return found
+    return None
+
+
+CHROMIUM = _binary("KFCAL_CHROMIUM", "chromium", "chromium-browser")
+CHROMEDRIVER = _binary("KFCAL_CHROMEDRIVER", "chromedriver")
+
+pytestmark = pytest.mark.skipif(
+    CHROMIUM is None or CHROMEDRIVER is None,
+    reason=("real-browser test of the live demos skipped: no Chromium/chromedriver found "
+            f"(chromium: {CHROMIUM or 'missing'}, chromedriver: {CHROMEDRIVER or 'missing'}; "
+            "Debian: apt-get install chromium chromium-driver)"))
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory):
+    """JupyterLab on a free localhost port, serving copies of notebooks 17 and 18 (the browser's
+    autosave never touches the committed files), with its own runtime, config and settings dirs."""
+    tmp = tmp_path_factory.mktemp("jupyterlab")
+    root = tmp / "root"
+    root.mkdir()
+    for name in NOTEBOOKS.values():
+        shutil.copy(ROOT / "notebooks" / name, root / name)
+    config = tmp / "config"
+    (config / "labconfig").mkdir(parents=True)
+    # no "news" question and no update check popping up over the notebook
+    (config / "labconfig" / "page_config.json").write_text(json.dumps(
+        {"disabledExtensions": {"@jupyterlab/apputils-extension:announcements": True}}))
+    env = {**os.environ, "JUPYTER_RUNTIME_DIR": str(tmp / "runtime"), "JUPYTER_CONFIG_DIR": str(config),
+           "JUPYTER_DATA_DIR": str(tmp / "data"), "JUPYTERLAB_SETTINGS_DIR": str(tmp / "settings"),
+           "JUPYTERLAB_WORKSPACES_DIR": str(tmp / "workspaces"), "KFCAL_QUIET": "1"}
+    port, token = _free_port(), secrets.token_hex(16)
+    log = open(tmp / "jupyterlab.log", "w")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "jupyterlab", "--no-browser", "--allow-root", "--ip=127.0.0.1", f"--port={port}",
+         "--ServerApp.port_retries=0", f"--IdentityProvider.token={token}", f"--ServerApp.root_dir={root}",
+         "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate"],
+        cwd=root, env=env, stdout=log, stderr=subprocess.STDOUT)
+    url = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 90
+        while True:
+            try:
+                with urllib.request.urlopen(f"{url}/api/status?token={token}", timeout=5):
+                    break
+            except OSError:
+                if proc.poll() is not None or time.monotonic() > deadline:
+                    log.flush()
+                    pytest.fail(f"JupyterLab did not start: {(tmp / 'jupyterlab.log').read_text()[-2000:]}")
+                time.sleep(0.5)
+        yield {"url": url, "token": token, "log": tmp / "jupyterlab.log"}
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        log.close()
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory):
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for arg in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                "--disable-dev-shm-usage", f"--window-size={WINDOW[0]},{WINDOW[1]}",
+                f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}"):
+        options.add_argument(arg)
+    driver = webdriver.Chrome(service=Service(executable_path=CHROMEDRIVER), options=options)
+    try:
+        driver.set_window_size(*WINDOW)
+        yield driver
+    finally:
+        driver.quit()
+
+
+@pytest.fixture(scope="module")
+def roundtrips():
+    """Round trips measured by the tests of this module, written to BENCH_FILE at the end."""
+    results = {}
+    yield results
+    if results:
+        BENCH_FILE.parent.mkdir(exist_ok=True)
+        chromium = subprocess.run([CHROMIUM, "--version"], capture_output=True, text=True).stdout.strip()
+        BENCH_FILE.write_text(json.dumps({
+            "what": "round trip in JupyterLab + headless Chromium: key press on a slider / click on a checkbox "
+                    "-> the demo's new image loaded in the page, ms",
+            "date": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+            "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.system()}",
+            "browser": chromium, "window": f"{WINDOW[0]}x{WINDOW[1]}",
+            "results": results}, indent=2) + "\n")
+
+
+@contextmanager
+def _screenshot_on_failure(driver, name):
+    try:
+        yield
+    except BaseException:
+        FAILURES.mkdir(parents=True, exist_ok=True)
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        shot = FAILURES / f"{name}-{stamp}.png"
+        try:
+            driver.save_screenshot(str(shot))
+            (FAILURES / f"{name}-{stamp}.html").write_text(driver.page_source)
+            print(f"browser test failed: screenshot {shot}", file=sys.stderr)
+        except Exception as error:  # the browser itself may be gone
+            print(f"browser test failed; no screenshot ({error})", file=sys.stderr)
+        raise
+
+
+def _wait(driver, condition, timeout, what):
+    """Poll ``condition(driver)`` until it returns something truthy; fail naming ``what``."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = condition(driver)
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            pytest.fail(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(0.1)
+
+
+_ERRORS_JS = """
+const [root] = arguments, out = [];
+for (const el of root.querySelectorAll(
+        '.jp-OutputArea-output[data-mime-type="application/vnd.jupyter.stderr"], .jp-OutputArea-output .ansi-red-fg')) {
+    out.push(el.innerText.slice(0, 300));
+}
+for (const el of root.querySelectorAll('.jp-OutputArea-output')) {
+    if (el.innerText.includes('Traceback') || el.innerText.includes('Warning:')) out.push(el.innerText.slice(0, 300));
+}
+return out;
+"""
+
+_PROMPTS_JS = """
+return Array.from(arguments[0].querySelectorAll('.jp-CodeCell .jp-InputArea-prompt')).map(e => e.textContent.trim());
+"""
+
+# timestamps, in the page, of the last key press / mouse press and of the first load of a new image after it
+_TIMING_JS = """
+const img = arguments[0];
+window.__kf = {start: null, loaded: null, src: img.src};
+const start = () => { window.__kf.start = performance.now(); window.__kf.loaded = null; window.__kf.src = img.src; };
+document.addEventListener('keydown', start, true);
+document.addEventListener('mousedown', start, true);
+img.addEventListener('load', () => {
+    if (window.__kf.start !== null && window.__kf.loaded === null && img.src !== window.__kf.src) {
+        window.__kf.loaded = performance.now();
+    }
+});
+"""
+
+# the rectangles of the demo's parts after scrolling it to the top of the notebook, and the part of
+# the window where the notebook shows its cells (below JupyterLab's menu and toolbar, above its status bar)
+_RECTS_JS = """
+const [box] = arguments;
+box.scrollIntoView({block: 'start'});
+const scroller = box.closest('.jp-WindowedPanel-outer') || box.closest('.jp-Notebook');
+const v = scroller.getBoundingClientRect();
+const parts = [box, ...box.querySelectorAll('.widget-slider, .widget-checkbox, .widget-toggle-buttons, img.widget-image')];
+return {window: [window.innerWidth, window.innerHeight],
+        view: {left: Math.max(v.left, 0), top: Math.max(v.top, 0), right: Math.min(v.right, window.innerWidth),
+               bottom: Math.min(v.bottom, window.innerHeight)},
+        rects: parts.map(e => { const r = e.getBoundingClientRect();
+            return {what: e.className.toString().split(' ').filter(c => c.startsWith('widget-')).join(' ') || e.tagName,
+                    left: r.left, top: r.top, right: r.right, bottom: r.bottom}; })};
+"""
+
+
+def _panel(driver):
+    """The notebook panel in front (JupyterLab keeps the notebooks opened before in the page)."""
+    from selenium.webdriver.common.by import By
+
+    panels = driver.find_elements(By.CSS_SELECTOR, ".jp-NotebookPanel:not(.lm-mod-hidden)")
+    return panels[0] if len(panels) == 1 else None
+
+
+def _open_and_run_all(driver, lab, name):
+    from selenium.webdriver.common.by import By
+
+    driver.get(f"{lab['url']}/lab/tree/{name}?token={lab['token']}")
+    panel = _wait(driver, lambda d: (p := _panel(d)) is not None and name in p.get_attribute("id") + p.text
+                  and p.find_elements(By.CSS_SELECTOR, ".jp-Cell") and p, 90, f"{name} to open")
+    idle = '.jp-Notebook-ExecutionIndicator[data-status="idle"]'
+    _wait(driver, lambda d: panel.find_elements(By.CSS_SELECTOR, idle), 90, "the kernel to be idle")
+    # a lecturer closes the file browser (a click on its icon) to give the notebook the window's width
+    for tab in driver.find_elements(By.CSS_SELECTOR, ".jp-SideBar.jp-mod-left .lm-TabBar-tab.lm-mod-current"):
+        tab.click()
+    # Run > Run All Cells, with the mouse
+    run_menu = [e for e in driver.find_elements(By.CSS_SELECTOR, ".lm-MenuBar-item") if e.text.strip() == "Run"]
+    assert run_menu, "no Run menu in JupyterLab's menu bar"
+    run_menu[0].click()
+    item = _wait(driver, lambda d: [e for e in d.find_elements(By.CSS_SELECTOR, ".lm-Menu-item .lm-Menu-itemLabel")
+                                    if e.text.strip() == "Run All Cells"], 10, "the Run All Cells menu item")
+    item[0].click()
+    n_code = len(driver.execute_script(_PROMPTS_JS, panel))
+
+    def finished(d):
+        prompts = d.execute_script(_PROMPTS_JS, panel)
+        done = all(p.startswith("[") and p[1:-2].strip().isdigit() for p in prompts)
+        return done and panel.find_elements(By.CSS_SELECTOR, idle)
+
+    _wait(driver, finished, 240, f"all {n_code} code cells of {name} to run")
+    counts = [int(p[1:-2]) for p in driver.execute_script(_PROMPTS_JS, panel)]
+    assert counts == list(range(1, n_code + 1)), f"cells ran out of order: {counts}"
+    image = _wait(driver, lambda d: [e for e in panel.find_elements(By.CSS_SELECTOR, "img.widget-image")
+                                     if (e.get_attribute("src") or "").startswith("blob:")], 60, "the demo's image")
+    assert len(image) == 1, f"{len(image)} widget images in {name}, expected the demo's one"
+    return panel, image[0]
+
+
+def _no_errors(driver, panel, when):
+    errors = driver.execute_script(_ERRORS_JS, panel)
+    assert not errors, f"error output {when}: {errors}"
+
+
+def _fits_window(driver, image):
+    """The whole demo (every control and the image) is visible at once in the notebook's area."""
+    from selenium.webdriver.common.by import By
+
+    box = image.find_element(By.XPATH, "ancestor::div[contains(@class, 'widget-hbox')][last()]")
+    got = driver.execute_script(_RECTS_JS, box)
+    assert got["window"][0] <= WINDOW[0] and got["window"][1] <= WINDOW[1], got["window"]
+    v = got["view"]
+    outside = [r for r in got["rects"] if r["left"] < v["left"] - 0.5 or r["top"] < v["top"] - 0.5
+               or r["right"] > v["right"] + 0.5 or r["bottom"] > v["bottom"] + 0.5]
+    assert len(got["rects"]) >= 6 and not outside, (
+        f"demo not within the notebook's visible area {v} of the {got['window']} window: {outside}")
+
+
+def _round_trip(driver, image, action, what, timeout=30.0) -> float:
+    """Do ``action()``; wait for the new image; return the page-timed round trip in ms and
+    check that the pixels changed."""
+    before = image.screenshot_as_png
+    action()
+    _wait(driver, lambda d: d.execute_script("return window.__kf.loaded !== null"), timeout, f"a new image after {what}")
+    ms = driver.execute_script("return window.__kf.loaded - window.__kf.start")
+    time.sleep(0.1)  # let the frame with the new image be painted
+    assert image.screenshot_as_png != before, f"the image did not change after {what}"
+    return round(float(ms), 1)
+
+
+def _slider_handle(panel, description):
+    from selenium.webdriver.common.by import By
+
+    for slider in panel.find_elements(By.CSS_SELECTOR, ".widget-slider"):
+        label = slider.find_elements(By.CSS_SELECTOR, ".widget-label")
+        if label and label[0].text.strip() == description:
+            return slider.find_element(By.CSS_SELECTOR, ".noUi-handle")
+    pytest.fail(f"no slider {description!r}")
+
+
+def _checkbox(panel, description):
+    from selenium.webdriver.common.by import By
+
+    for box in panel.find_elements(By.CSS_SELECTOR, ".widget-checkbox"):
+        if box.text.strip() == description:
+            return box.find_element(By.CSS_SELECTOR, "input[type=checkbox]")
+    pytest.fail(f"no checkbox {description!r}")
+
+
+def _ukf_at_large_q(driver, panel, image):
+    """Notebook 18: the UKF with Q / Qtrue at the slider's end and without the bearing UGV->UAV,
+    where the UKF has lost positive definiteness: a figure or a one-line message, no traceback."""
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+
+    c = coop_controls()
+    ukf = [b for b in panel.find_elements(By.CSS_SELECTOR, ".widget-toggle-button") if b.text.strip() == "UKF"]
+    assert ukf, "no UKF button"
+    _round_trip(driver, image, ukf[0].click, "a click on UKF")
+    _round_trip(driver, image, lambda: _slider_handle(panel, c["q_scale"].description).send_keys(Keys.END),
+                "End on the Q slider")
+    _round_trip(driver, image, _checkbox(panel, c["m0"].description).click, "unticking the bearing UGV->UAV")
+    line = panel.find_element(By.CSS_SELECTOR, ".widget-html").text.strip()
+    assert "\n" not in line and (line.startswith("UKF, Q = 100 Qtrue") or "positive definite" in line
+                                  or "not finite" in line), line
+    return line
+
+
+def _drive(driver, lab, nb, slider, checkbox, roundtrips):
+    from selenium.webdriver.common.keys import Keys
+
+    name = NOTEBOOKS[nb]
+    with _screenshot_on_failure(driver, f"nb{nb}"):
+        panel, image = _open_and_run_all(driver, lab, name)
+        _no_errors(driver, panel, f"after running all cells of {name}")
+        _fits_window(driver, image)
+        driver.execute_script(_TIMING_JS, image)
+        handle = _slider_handle(panel, slider)
+        keys = [_round_trip(driver, image, lambda: handle.send_keys(Keys.ARROW_RIGHT), f"a key press on {slider!r}")
+                for _ in range(KEY_PRESSES)]
+        box = _checkbox(panel, checkbox)
+        clicks = [_round_trip(driver, image, box.click, f"a click on {checkbox!r}") for _ in range(2)]
+        assert box.is_selected()  # unticked, then ticked again
+        if nb == "18":
+            roundtrips["notebook 18: line shown for the UKF at Q / Qtrue 100 without the bearing UGV->UAV"] = \
+                _ukf_at_large_q(driver, panel, image)
+        _no_errors(driver, panel, f"after moving {slider!r} and clicking {checkbox!r} in {name}")
+        _fits_window(driver, image)
+        if os.environ.get("KFCAL_BROWSER_SCREENSHOTS"):  # to look at the demo as the test left it
+            driver.save_screenshot(str(Path(os.environ["KFCAL_BROWSER_SCREENSHOTS"]) / f"nb{nb}.png"))
+    roundtrips[f"notebook {nb}"] = {
+        "slider": slider, "key_press_ms": keys, "key_press_median_ms": statistics.median(keys),
+        "checkbox": checkbox, "click_ms": clicks}
+    return keys, clicks
+
+
+def test_calibration_demo_in_the_browser(lab, browser, roundtrips):
+    c = calibration_controls()
+    _drive(browser, lab, "17", c["W"].description, c["outage_on"].description, roundtrips)
+
+
+def test_coop_demo_in_the_browser(lab, browser, roundtrips):
+    c = coop_controls()
+    _drive(browser, lab, "18", c["q_scale"].description, c["m1"].description, roundtrips)
