@@ -29,44 +29,83 @@ def _two_lines(label: str) -> str:
     return label.replace(" [", "\n[", 1) if " [" in label else label
 
 
-def plot_series(t, series: dict, labels, title: str, styles: dict | None = None, ncols: int = 2, figsize=None):
+def _break_at_wraps(t, y):
+    """Insert a NaN where a wrapped angle jumps by more than pi, so that a line drawn through the
+    samples stops at the jump instead of crossing the panel with a vertical stroke."""
+    t, y = np.asarray(t, float), np.asarray(y, float)
+    with np.errstate(invalid="ignore"):
+        idx = np.flatnonzero(np.abs(np.diff(y)) > np.pi) + 1
+    return np.insert(t, idx, np.nan), np.insert(y, idx, np.nan)
+
+
+def _place_legend(fig, axes, n: int):
+    """One legend for the whole grid of panels, never over the data: in the first unused panel when
+    the grid has one, otherwise below the panels.  A single series gets no legend
+    (the title names it)."""
+    for ax in axes.flat:
+        if ax.get_legend() is not None:
+            ax.get_legend().remove()
+    for leg in list(fig.legends):
+        leg.remove()
+    handles, names = axes.flat[0].get_legend_handles_labels()
+    if len(handles) < 2:
+        return
+    if n < axes.size:
+        axes.flat[n].legend(handles, names, loc="center", frameon=False)
+    else:
+        fig.legend(handles, names, loc="outside lower center", ncol=len(handles), frameon=False)
+
+
+def plot_series(t, series: dict, labels, title: str, styles: dict | None = None, ncols: int = 2, figsize=None,
+                wrapped=()):
     """One panel per component: ``series`` maps a legend name to an array (K, n).
 
     ``labels`` are the n y-axis labels (with units); ``styles`` maps a legend name to
-    keyword arguments of ``Axes.plot``; ``figsize`` in inches (default 11 x 2.3 per row).
+    keyword arguments of ``Axes.plot``; ``figsize`` in inches (default 11 x 2.3 per row);
+    ``wrapped`` lists the components that are wrapped angles (their lines break at the +-pi jumps).
+    The legend sits in an unused panel or above the panels; the lowest panel of each column
+    carries the time axis.
     """
     n = len(labels)
     nrows = int(np.ceil(n / ncols))
-    fig, axes = plt.subplots(nrows, ncols, figsize=figsize or (11, 2.3 * nrows), sharex=True, squeeze=False)
+    fig, axes = plt.subplots(nrows, ncols, figsize=figsize or (11, 2.3 * nrows), sharex=True, squeeze=False,
+                             layout="constrained")
     styles = styles or {}
     for i, ax in enumerate(axes.flat):
         if i >= n:
-            ax.set_visible(False)
+            ax.set_axis_off()
             continue
         for name, arr in series.items():
-            ax.plot(t, np.asarray(arr)[:, i], label=name, **styles.get(name, {"lw": _lw(0.7)}))
+            col = np.asarray(arr)[:, i]
+            tt, yy = _break_at_wraps(t, col) if i in wrapped else (t, col)
+            ax.plot(tt, yy, label=name, **styles.get(name, {"lw": _lw(0.7)}))
         ax.set_ylabel(_two_lines(labels[i]))
         ax.grid(True, alpha=0.3)
-    for ax in axes[-1]:
-        ax.set_xlabel("time $t$ [s]")
-    axes.flat[0].legend(loc="best")
+    for c in range(ncols):
+        used = [r for r in range(nrows) if r * ncols + c < n]
+        if used:
+            axes[used[-1], c].xaxis.set_tick_params(labelbottom=True)
+            axes[used[-1], c].set_xlabel("time $t$ [s]")
     fig.suptitle(title)
-    fig.tight_layout()
+    _place_legend(fig, axes, n)
     return fig
 
 
-def plot_states(t, x, sigma2=None, truth=None, title: str = "States", figsize=None, ncols: int = 2):
-    """States (K, 6) with an optional +-2 sigma band (K, 6) and the truth (K, 6); ``ncols`` panels per row."""
-    series = {"estimate": x}
-    styles = {"estimate": {"lw": _lw(0.7), "color": "C0"}, "truth": {"lw": _lw(0.7), "color": "k", "ls": "--"}}
+def plot_states(t, x, sigma2=None, truth=None, title: str = "States", figsize=None, ncols: int = 2,
+                names=("estimate", "truth")):
+    """States (K, 6) with an optional +-2 sigma band (K, 6) and the truth (K, 6); ``ncols`` panels per row;
+    ``names`` are the legend names of ``x`` (solid) and ``truth`` (dashed)."""
+    est, tru = names
+    series = {est: x}
+    styles = {est: {"lw": _lw(0.7), "color": "C0"}, tru: {"lw": _lw(0.7), "color": "k", "ls": "--"}}
     if truth is not None:
-        series["truth"] = truth
+        series[tru] = truth
     fig = plot_series(t, series, STATE_LABELS, title, styles, ncols=ncols, figsize=figsize)
     if sigma2 is not None:
         for i, ax in enumerate(fig.axes[:6]):
             ax.fill_between(t, x[:, i] - sigma2[:, i], x[:, i] + sigma2[:, i], color="C0", alpha=0.2,
                             label=r"$\pm 2\sigma$")
-        fig.axes[0].legend(loc="best")
+        _place_legend(fig, np.array(fig.axes[:6]), 6)
     return fig
 
 
@@ -82,12 +121,12 @@ def plot_errors(t, errors, sigma2, title: str = r"Estimation errors with $\pm 2\
 
 def plot_measurements(t, series: dict, title: str = "Measurements", figsize=None, ncols: int = 2):
     """Measurements: ``series`` maps a legend name to an array (K, 5) (NaN rows are gaps);
-    ``ncols`` panels per row.  The first series is drawn as dots (a wrapped bearing then jumps
-    without a vertical line)."""
+    ``ncols`` panels per row.  The first series is drawn as dots, the others as lines that break
+    where a wrapped bearing jumps by 2 pi (no vertical strokes)."""
     ms = 0.35 * mpl.rcParams["lines.markersize"]
     styles = {name: ({"lw": 0, "marker": ".", "ms": ms} if i == 0 else {"lw": _lw(0.7)})
               for i, name in enumerate(series)}
-    return plot_series(t, series, MEAS_LABELS, title, styles, ncols=ncols, figsize=figsize)
+    return plot_series(t, series, MEAS_LABELS, title, styles, ncols=ncols, figsize=figsize, wrapped=(0, 2))
 
 
 def plot_consistency(mc, title: str | None = None, figsize=None):
@@ -173,7 +212,7 @@ def plot_runs_consistency(mc, title: str | None = None, figsize=None, ylim=None)
     """Every run's NEES and NIS per step (small grey points), their run averages (line) and the
     chi-square bounds of the average (dashed) for a
     :class:`~kfcal_helpers.coop.montecarlo.MonteCarloResult`; log y scale (default 11 x 3.6 in)."""
-    fig, axes = plt.subplots(1, 2, figsize=figsize or (11, 3.6))
+    fig, axes = plt.subplots(1, 2, figsize=figsize or (11, 3.6), layout="constrained")
     ms = 0.15 * mpl.rcParams["lines.markersize"]
     for ax, values, mean, bounds, name in ((axes[0], mc.nees, mc.nees_mean, mc.nees_bounds, "NEES"),
                                            (axes[1], mc.nis, mc.nis_mean, mc.nis_bounds, "NIS")):
@@ -192,7 +231,8 @@ def plot_runs_consistency(mc, title: str | None = None, figsize=None, ylim=None)
         frac = mc.nees_inside_fraction if name == "NEES" else mc.nis_inside_fraction
         ax.set_title(f"{name}: average inside [{bounds[0]:.2f}, {bounds[1]:.2f}] at {100 * frac:.1f}% of steps")
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="lower right", fontsize="small", markerscale=6)
+    # one legend below both panels: inside either it would hide run points
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncol=3, markerscale=6,
+               frameon=False)
     fig.suptitle(title or f"{mc.filter.upper()} truth-model test, alpha = {mc.alpha:g}")
-    fig.tight_layout()
     return fig
