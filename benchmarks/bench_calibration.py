@@ -1,6 +1,6 @@
 """Benchmark of the calibration Monte Carlo (run: python benchmarks/bench_calibration.py).
 
-Measures in one run, on the SPEC defaults (200 Hz, 5 Hz, 30 s):
+Measures in one run, on the default scenario (200 Hz, 5 Hz, 30 s):
 * the full Monte Carlo (200 Hz simulation + filter + all checks) with 10,000
   realizations on the batch engine, wall time and peak memory (max RSS of this process);
 * the cost per realization of the filterpy engine (one KalmanFilter per realization);

@@ -52,7 +52,7 @@ def calibration_realization(params=None, missing_fixes=None, truth: str = "euler
 
     Parameters
     ----------
-    params : CalibrationParams (default: the SPEC's)
+    params : CalibrationParams (default: ``CalibrationParams()``)
     missing_fixes : optional bool array (n_gps,), fixes missing in the realization (outages):
         their GPS rows are NaN and the filter only predicts there, as in the Monte Carlo
     truth : "euler" or "analytic"
@@ -75,7 +75,7 @@ def calibration_realization(params=None, missing_fixes=None, truth: str = "euler
 class CalibrationCase:
     """A calibration scenario whose realization and Monte Carlo are computed on first use.
 
-    params : CalibrationParams (default: the SPEC's); missing_fixes : bool (n_gps,) or None;
+    params : CalibrationParams (default: ``CalibrationParams()``); missing_fixes : bool (n_gps,) or None;
     truth : "euler" or "analytic"; seed : seed of the realization and of the Monte Carlo;
     n_runs, engine : of the Monte Carlo; mc : an existing MonteCarloResult to use instead.
     """
@@ -163,7 +163,7 @@ class CoopCase:
 
 
 class FigureData:
-    """The three scenarios the figure functions draw from: ``calibration`` (SPEC defaults, no
+    """The three scenarios the figure functions draw from: ``calibration`` (``CalibrationParams()`` defaults, no
     outage), ``outage`` (the same seed with :data:`OUTAGE_WINDOWS`) and ``coop``."""
 
     def __init__(self, calibration: CalibrationCase | None = None, outage: CalibrationCase | None = None,

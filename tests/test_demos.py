@@ -299,7 +299,7 @@ def _rejected(fb, exercise, key):
 
 
 def test_check_17_1_first_fix_sigma():
-    right = np.sqrt([1 / (1 / 100 + 1 / 9), 1 / (1 / 1 + 1 / 0.0016), 0.01])  # SPEC M0, V with sigma_p = 3 m
+    right = np.sqrt([1 / (1 / 100 + 1 / 9), 1 / (1 / 1 + 1 / 0.0016), 0.01])  # default M0, V with sigma_p = 3 m
     assert check_demo_first_fix_sigma(right).correct
     assert check_demo_first_fix_sigma(list(right)).correct
     demo = compute_calibration_demo(gps_pos_var=9.0, n_runs=10)

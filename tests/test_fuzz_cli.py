@@ -520,7 +520,7 @@ def test_peak_memory_of_the_largest_accepted_runs(args, tmp_path):
 
 
 def test_estimate_bounds_chunks_and_refuses():
-    """The chunk size follows one realization's size: 500 for the SPEC's scenario, fewer for long ones."""
+    """The chunk size follows one realization's size: 500 for the default scenario, fewer for long ones."""
     from kfcal_helpers.calibration import montecarlo
     from kfcal_helpers.calibration.montecarlo import CHUNK_SIZE, chunk_size, estimate_run
 

@@ -122,7 +122,7 @@ HINTS: dict[str, dict[str, str]] = {
         "normal": "close, but that is the normal approximation: use the exact chi-square quantiles",
     },
     "04.1": {
-        "sign_corner": "check the sign of Φ[0,2] (a mistake made in one of the course reports): a positive bias pulls δp down, like δv",
+        "sign_corner": "check the sign of Φ[0,2]: a positive bias pulls δp down, like δv",
         "dt_corner": "Φ[0,2] is the position effect of a constant bias over one step: Δt²/2, not Δt",
         "signs_bias": "the bias enters with a minus sign: a positive bias makes the IMU over-read, so δp and δv "
                       "decrease",
@@ -147,7 +147,7 @@ HINTS: dict[str, dict[str, str]] = {
     },
     "04.4": {
         "sigmas": "M0 holds variances: square the standard deviations",
-        "swapped": "the state order is [δp, δv, b]: the position variance comes first (a mistake made in one of the course reports)",
+        "swapped": "the state order is [δp, δv, b]: the position variance comes first",
         "default": "use the exercise's standard deviations, not the notebook's defaults",
     },
     "05.1": {

@@ -638,7 +638,7 @@ def _state_diff(a, b):
 
 def check_coop_ekf_F(answer, x_post=EKF_X, t: float = EKF_T) -> Feedback:
     """11.2: the EKF's ``F_k`` for the step from the posterior ``x_post`` (6,) at time ``t`` (s),
-    with the SPEC's control u0, dT = 0.1 s and L = 0.5 m.
+    with the nominal control u0 = [2, -pi/18, 12, pi/25], dT = 0.1 s and L = 0.5 m.
 
     answer : array (6, 6)
     """

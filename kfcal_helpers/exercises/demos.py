@@ -125,7 +125,7 @@ def first_fix_sigmas(gps_pos_sigma: float, params: CalibrationParams | None = No
 def check_demo_first_fix_sigma(answer, *, gps_pos_sigma: float = 3.0) -> Feedback:
     """Exercise 17.1: the a posteriori ``[σ_p, σ_v, σ_b]`` (m, m/s, m/s²), shape (3,), right
     after the first fix at t = 0 when the GPS position noise has σ = ``gps_pos_sigma`` m (the
-    other parameters the SPEC's: M0 = diag(100, 1, 0.01), GPS velocity variance 0.0016)."""
+    other parameters the defaults: M0 = diag(100, 1, 0.01), GPS velocity variance 0.0016)."""
     ex = "17.1"
     gps_pos_sigma = require_positive("gps_pos_sigma", gps_pos_sigma)
     p = CalibrationParams()
