@@ -73,7 +73,7 @@ def _time(fn, repeat):
 
 
 def _row(name, compute, draw, png):
-    (cb, cm), (db, dm), (pb, pm) = compute, draw, png
+    (cb, cm), (db, dm), (pb, _) = compute, draw, png
     return (f"{name:<34} {1e3 * cb:8.1f} {1e3 * db:8.1f} {1e3 * (cb + db):8.1f} {1e3 * (cm + dm):8.1f} "
             f"{1e3 * (cb + pb):8.1f}")
 

@@ -12,7 +12,7 @@ from scipy import stats
 
 from kfcal_helpers.calibration import (CalibrationParams, batch_filter, covariance_sequence, error_state_model,
                                        outage_mask, run_filterpy, simulate)
-from kfcal_helpers.coop import (TUNED_Q_SCALE, CoopParams, generate_log, jacobian_A, jacobian_C, measure, measurement_residual,
+from kfcal_helpers.coop import (TUNED_Q_SCALE, CoopParams, generate_log, jacobian_C, measure, measurement_residual,
                                 nominal_trajectory, run_filter, state_residual)
 from kfcal_helpers.demos import (LIVE_FIGSIZE, MEASUREMENT_NAMES, CalibrationDemoFigure, CoopDemoFigure, LiveDemo,
                                  calibration_controls, compute_calibration_demo, compute_coop_demo, coop_controls,

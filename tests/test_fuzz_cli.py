@@ -9,7 +9,6 @@ the unprivileged user ``nobody`` when the tests run as root), and the peak memor
 import json
 import math
 import os
-import resource
 import shutil
 import signal
 import subprocess
