@@ -15,7 +15,7 @@ import numpy as np
 from .model import MEAS_LABELS, N_MEAS, STATE_LABELS
 
 __all__ = ["plot_series", "plot_states", "plot_errors", "plot_measurements", "plot_consistency", "plot_paths",
-           "plot_nis_comparison", "plot_runs_consistency"]
+           "plot_nis_comparison", "plot_runs_consistency", "legend_below"]
 
 
 def _lw(scale: float = 1.0) -> float:
@@ -53,6 +53,18 @@ def plot_series(t, series: dict, labels, title: str, styles: dict | None = None,
     fig.suptitle(title)
     fig.tight_layout()
     return fig
+
+
+def legend_below(fig):
+    """Move the legend of the first panel of a :func:`plot_series` figure (``plot_states``,
+    ``plot_errors``, ``plot_measurements``) to one row below all panels, where it covers no data.
+    Returns the figure legend."""
+    ax = fig.axes[0]
+    handles, labels = ax.get_legend_handles_labels()
+    if ax.get_legend() is not None:
+        ax.get_legend().remove()
+    return fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=len(labels),
+                      frameon=False, markerscale=3)
 
 
 def plot_states(t, x, sigma2=None, truth=None, title: str = "States", figsize=None, ncols: int = 2):
@@ -143,8 +155,8 @@ def plot_nis_comparison(averages: dict, bounds, title: str = "Time-averaged NIS 
                         expected: float = N_MEAS, figsize=None):
     """Time-averaged NIS per filter (``averages`` maps a name to a float) against the chi-square
     ``bounds`` (lower, upper) of a consistent filter and the ``expected`` value (the measurement
-    dimension); a marker per filter, green inside the bounds, red outside; log scale
-    (default 7 x 4.5 in)."""
+    dimension); a marker per filter, green inside the bounds, red outside; linear scale
+    spanning the bounds and the values (default 7 x 4.5 in)."""
     names = list(averages)
     values = np.array([averages[n] for n in names], float)
     lo, hi = bounds
@@ -159,8 +171,9 @@ def plot_nis_comparison(averages: dict, bounds, title: str = "Time-averaged NIS 
                     textcoords="offset points", ha="center")
     ax.set_xticks(x, names)
     ax.set_xlim(-0.5, len(names) - 0.5)
-    ax.set_yscale("log")
-    ax.set_ylim(min(values.min(), lo) / 1.5, max(values.max(), hi) * 3)
+    bottom, top = min(values.min(), lo), max(values.max(), hi)
+    pad = 0.25 * (top - bottom)
+    ax.set_ylim(bottom - pad, top + 2 * pad)   # linear: the band and the values fill the axis
     ax.set_ylabel("time-averaged NIS [-]")
     ax.set_title(title)
     ax.legend(loc="upper right")
