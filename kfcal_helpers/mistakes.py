@@ -18,9 +18,9 @@ Cooperative localization (50 truth-model runs):
 
 * ``ekf_no_wrap`` -- EKF innovations without bearing wrapping (the course's truth model);
 * ``ekf_omega_identity`` -- the noise entering as ``Omega = I`` (state noise Qtrue per step)
-  instead of ``Omega = dT I``, in the truth model *and* the filter (Q = 1.5 Qtrue, as tuned in
-  that model): the truth-model test cannot see it (it tests the filter against the same wrong
-  model); only the course log's NIS does;
+  instead of ``Omega = dT I``, in the truth model *and* the filter (Q = 1.5 Qtrue, with which it
+  passes the truth-model test in that model): the truth-model test cannot see it (it tests the
+  filter against the same wrong model); only the course log's NIS does;
 * ``lkf_no_nominal`` -- LKF innovation ``y - H dx-`` without the nominal measurement
   subtracted (small-perturbation truth model, where the correct LKF is consistent).
 
@@ -104,9 +104,10 @@ def coop_case(mistake: str, params: CoopParams | None = None) -> tuple[str, Coop
     """Filter name, truth-model parameters and filter keyword arguments of a coop row.
 
     The EKF rows use the course's truth model (``Omega = dT I``) and the tuned ``Q = Qtrue``, except
-    ``ekf_omega_identity``, whose truth model and filter both use ``Omega = I`` with the ``Q = 1.5 Qtrue``
-    tuned in that model; the LKF rows a truth that stays near the nominal (``Qtrue / 10^4``, P0 / 100),
-    the regime where a correct LKF is consistent (notebook 10), with the filter's Q equal to it.
+    ``ekf_omega_identity``, whose truth model and filter both use ``Omega = I`` with ``Q = 1.5 Qtrue``
+    (which passes the truth-model test in that model); the LKF rows a truth that stays near the
+    nominal (``Qtrue / 10^4``, P0 / 100), the regime where a correct LKF is consistent (notebook 10),
+    with the filter's Q equal to it.
     """
     mistake = require_choice("mistake", mistake, tuple(COOP_MISTAKES))
     p = params if params is not None else CoopParams()

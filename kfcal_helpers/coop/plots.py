@@ -15,7 +15,7 @@ import numpy as np
 from .model import MEAS_LABELS, N_MEAS, STATE_LABELS
 
 __all__ = ["plot_series", "plot_states", "plot_errors", "plot_measurements", "plot_consistency", "plot_paths",
-           "plot_nis_comparison", "plot_runs_consistency"]
+           "plot_nis_comparison", "plot_runs_consistency", "legend_below"]
 
 
 def _lw(scale: float = 1.0) -> float:
@@ -89,6 +89,25 @@ def plot_series(t, series: dict, labels, title: str, styles: dict | None = None,
     fig.suptitle(title)
     _place_legend(fig, axes, n)
     return fig
+
+
+def legend_below(fig):
+    """Put the one legend of a :func:`plot_series` figure (``plot_states``, ``plot_errors``,
+    ``plot_measurements``) in one row below all panels, where it covers no data, whatever panel it
+    was in.  Returns the figure legend (None for a single series, which has no legend)."""
+    for ax in fig.axes:
+        if ax.get_legend() is not None:
+            ax.get_legend().remove()
+    for leg in list(fig.legends):
+        leg.remove()
+    handles, labels = fig.axes[0].get_legend_handles_labels()
+    if len(handles) < 2:
+        return None
+    if fig.get_layout_engine() is not None and "Constrained" in type(fig.get_layout_engine()).__name__:
+        return fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), frameon=False,
+                          markerscale=3)
+    return fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=len(labels),
+                      frameon=False, markerscale=3)
 
 
 def plot_states(t, x, sigma2=None, truth=None, title: str = "States", figsize=None, ncols: int = 2,
@@ -182,8 +201,8 @@ def plot_nis_comparison(averages: dict, bounds, title: str = "Time-averaged NIS 
                         expected: float = N_MEAS, figsize=None):
     """Time-averaged NIS per filter (``averages`` maps a name to a float) against the chi-square
     ``bounds`` (lower, upper) of a consistent filter and the ``expected`` value (the measurement
-    dimension); a marker per filter, green inside the bounds, red outside; log scale
-    (default 7 x 4.5 in)."""
+    dimension); a marker per filter, green inside the bounds, red outside; linear scale
+    spanning the bounds and the values (default 7 x 4.5 in)."""
     names = list(averages)
     values = np.array([averages[n] for n in names], float)
     lo, hi = bounds
@@ -198,8 +217,9 @@ def plot_nis_comparison(averages: dict, bounds, title: str = "Time-averaged NIS 
                     textcoords="offset points", ha="center")
     ax.set_xticks(x, names)
     ax.set_xlim(-0.5, len(names) - 0.5)
-    ax.set_yscale("log")
-    ax.set_ylim(min(values.min(), lo) / 1.5, max(values.max(), hi) * 3)
+    bottom, top = min(values.min(), lo), max(values.max(), hi)
+    pad = 0.25 * (top - bottom)
+    ax.set_ylim(bottom - pad, top + 2 * pad)   # linear: the band and the values fill the axis
     ax.set_ylabel("time-averaged NIS [-]")
     ax.set_title(title)
     ax.legend(loc="upper right")
