@@ -558,7 +558,7 @@ def test_live_demo_validates():
 def test_describe_controls():
     c = coop_controls()
     c["m0"].value = c["m2"].value = False
-    assert describe_controls(c) == "filter EKF; Q / Qtrue 1.5; on: range, UAV GPS east, UAV GPS north"
+    assert describe_controls(c) == f"filter EKF; Q / Qtrue {TUNED_Q_SCALE['ekf']:g}; on: range, UAV GPS east, UAV GPS north"
     assert describe_controls(c, {"filter": "ukf", "m1": False, "m3": False, "m4": False}).endswith("on: none ticked")
     assert describe_controls(calibration_controls()) == ("GPS rate [Hz] 5; IMU noise W [(m/s²)²] 0.0004; GPS σ_p [m] 1; "
                                                          "bias prior σ [m/s²] 0.1; outage window [s] 12–18; on: GPS outage")
