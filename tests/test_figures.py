@@ -168,3 +168,19 @@ def test_calibrate_figures_into_a_file_fails_before_the_monte_carlo(tmp_path, ca
     assert main(["calibrate", "--runs", "100000000", "--figures", str(tmp_path / "f")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--figures" in err
+
+
+def test_legend_below_leaves_one_legend_under_the_panels():
+    from kfcal_helpers.coop.plots import legend_below, plot_states
+
+    t = np.linspace(0, 1, 11)
+    x = np.zeros((11, 6))
+    fig = plot_states(t, x, truth=x + 1)
+    assert sum(ax.get_legend() is not None for ax in fig.axes) + len(fig.legends) == 1
+    leg = legend_below(fig)
+    assert leg is not None and fig.legends == [leg]
+    assert all(ax.get_legend() is None for ax in fig.axes)
+    assert [t.get_text() for t in leg.get_texts()] == ["estimate", "truth"]
+    single = plot_states(t, x)
+    assert legend_below(single) is None and not single.legends
+    plt.close("all")

@@ -38,16 +38,22 @@ def _break_at_wraps(t, y):
     return np.insert(t, idx, np.nan), np.insert(y, idx, np.nan)
 
 
-def _place_legend(fig, axes, n: int):
-    """One legend for the whole grid of panels, never over the data: in the first unused panel when
-    the grid has one, otherwise below the panels.  A single series gets no legend
-    (the title names it)."""
-    for ax in axes.flat:
+def _take_legend(fig):
+    """Remove every legend of ``fig`` (panels and figure); return the handles and names of the
+    first panel's series."""
+    for ax in fig.axes:
         if ax.get_legend() is not None:
             ax.get_legend().remove()
     for leg in list(fig.legends):
         leg.remove()
-    handles, names = axes.flat[0].get_legend_handles_labels()
+    return fig.axes[0].get_legend_handles_labels()
+
+
+def _place_legend(fig, axes, n: int):
+    """One legend for the whole grid of panels, never over the data: in the first unused panel when
+    the grid has one, otherwise below the panels.  A single series gets no legend
+    (the title names it)."""
+    handles, names = _take_legend(fig)
     if len(handles) < 2:
         return
     if n < axes.size:
@@ -95,12 +101,7 @@ def legend_below(fig):
     """Put the one legend of a :func:`plot_series` figure (``plot_states``, ``plot_errors``,
     ``plot_measurements``) in one row below all panels, where it covers no data, whatever panel it
     was in.  Returns the figure legend (None for a single series, which has no legend)."""
-    for ax in fig.axes:
-        if ax.get_legend() is not None:
-            ax.get_legend().remove()
-    for leg in list(fig.legends):
-        leg.remove()
-    handles, labels = fig.axes[0].get_legend_handles_labels()
+    handles, labels = _take_legend(fig)
     if len(handles) < 2:
         return None
     if fig.get_layout_engine() is not None and "Constrained" in type(fig.get_layout_engine()).__name__:
