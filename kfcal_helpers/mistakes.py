@@ -18,8 +18,9 @@ Cooperative localization (50 truth-model runs):
 
 * ``ekf_no_wrap`` -- EKF innovations without bearing wrapping (the course's truth model);
 * ``ekf_omega_identity`` -- the noise entering as ``Omega = I`` (state noise Qtrue per step)
-  instead of ``Omega = dT I``, in the truth model *and* the filter (Q = 1.5 Qtrue, with which it
-  passes the truth-model test in that model): the truth-model test cannot see it (it tests the
+  instead of ``Omega = dT I``, in the truth model *and* the filter (Q = 1.5 Qtrue, the scale that
+  notebook 11's truth-model test picks in that model; Qtrue itself is over-confident there, 2 Qtrue
+  under-confident -- notebook 14): the truth-model test cannot see it (it tests the
   filter against the same wrong model); only the course log's NIS does;
 * ``lkf_no_nominal`` -- LKF innovation ``y - H dx-`` without the nominal measurement
   subtracted (small-perturbation truth model, where the correct LKF is consistent).
@@ -105,7 +106,7 @@ def coop_case(mistake: str, params: CoopParams | None = None) -> tuple[str, Coop
 
     The EKF rows use the course's truth model (``Omega = dT I``) and the tuned ``Q = Qtrue``, except
     ``ekf_omega_identity``, whose truth model and filter both use ``Omega = I`` with ``Q = 1.5 Qtrue``
-    (which passes the truth-model test in that model); the LKF rows a truth that stays near the
+    (the scale the truth-model test picks in that model: ``Qtrue`` is over-confident there); the LKF rows a truth that stays near the
     nominal (``Qtrue / 10^4``, P0 / 100), the regime where a correct LKF is consistent (notebook 10),
     with the filter's Q equal to it.
     """
