@@ -133,9 +133,10 @@ def plot_errors(t, errors, sigma2, title: str = r"Estimation errors with $\pm 2\
                 ncols: int = 2):
     """Errors (K, 6) (headings wrapped) against +-2 sigma (K, 6); ``ncols`` panels per row."""
     bound = {"lw": _lw(0.7), "color": "k", "ls": "--"}
-    styles = {"error": {"lw": _lw(0.7), "color": "C3"}, r"$+2\sigma$": bound, r"$-2\sigma$": bound}
+    # one legend entry for both bound lines: a name starting with "_" is left out of the legend
+    styles = {"error": {"lw": _lw(0.7), "color": "C3"}, r"$\pm 2\sigma$": bound, "_-2sigma": bound}
     labels = [f"error {lab}" for lab in STATE_LABELS]
-    return plot_series(t, {"error": errors, r"$+2\sigma$": sigma2, r"$-2\sigma$": -np.asarray(sigma2)},
+    return plot_series(t, {"error": errors, r"$\pm 2\sigma$": sigma2, "_-2sigma": -np.asarray(sigma2)},
                        labels, title, styles, ncols=ncols, figsize=figsize)
 
 
