@@ -9,7 +9,8 @@ Subpackages, one per course problem:
 
 Shared modules: :mod:`~kfcal_helpers.consistency` (NEES/NIS and chi-square
 bounds), :mod:`~kfcal_helpers.validation` (argument checks),
-:mod:`~kfcal_helpers.progress` (progress bars that stay quiet under tests).
+:mod:`~kfcal_helpers.progress` (progress bars that stay quiet under tests),
+:mod:`~kfcal_helpers.output` (strict JSON and the files being written, for the command line).
 """
 
 __version__ = "0.1.0"

@@ -20,14 +20,14 @@ command leaves no partial file behind.
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import os
 import re
 import signal
 import sys
 import threading
 import warnings
+
+from .output import PARTIAL_FILES, dumps_json
 
 __all__ = ["main", "OneLineParser", "dumps_json", "EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_BROKEN_PIPE"]
 
@@ -58,21 +58,6 @@ class OneLineParser(argparse.ArgumentParser):
 
     def format_help(self):
         return super().format_help().replace("``", "")
-
-
-def _strict(value):
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _strict(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_strict(v) for v in value]
-    return value
-
-
-def dumps_json(obj) -> str:
-    """``obj`` as strict JSON (``allow_nan=False``): a non-finite float (NaN, infinity) becomes null."""
-    return json.dumps(_strict(obj), allow_nan=False)
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -107,10 +92,6 @@ def _quiet_stdout() -> None:
         os.dup2(devnull, sys.stdout.fileno())
     except (OSError, ValueError, AttributeError):
         pass
-
-
-#: temporary files being written (see kfcal_helpers.figures.save_atomic), removed on Ctrl-C
-PARTIAL_FILES: set = set()
 
 
 def _remove_partial_files() -> None:

@@ -379,7 +379,7 @@ def save_atomic(fig, out: Path, fmt: str, dpi: float, argname: str = "directory"
     """Save ``fig`` to ``out`` under a temporary name in the same directory, then rename it, so an
     interrupted or failed save leaves no partial file (ValueError naming ``argname`` if the file
     cannot be written)."""
-    from .cli import PARTIAL_FILES
+    from .output import PARTIAL_FILES
 
     out = Path(out)
     tmp = out.with_name(f".{out.name}.{os.getpid()}.part")

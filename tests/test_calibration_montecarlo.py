@@ -97,12 +97,30 @@ def test_between_fixes_equals_the_direct_statistics_and_filterpy():
 
 
 def test_between_fixes_memory_does_not_grow_with_n():
+    import tracemalloc
+
     from kfcal_helpers.calibration.montecarlo import CHUNK_SIZE
 
-    small = run_monte_carlo(n_runs=3, seed=1, between_fixes=True)
-    big = run_monte_carlo(n_runs=CHUNK_SIZE + 3, seed=1, between_fixes=True)  # two chunks
-    for name in ("e_mean", "e_cov", "P"):
-        assert getattr(small.between, name).shape == getattr(big.between, name).shape
+    params = CalibrationParams(duration=5.0)
+    peaks = []
+    for n_runs in (CHUNK_SIZE, 3 * CHUNK_SIZE):  # one chunk, three chunks
+        tracemalloc.start()
+        run_monte_carlo(params, n_runs=n_runs, seed=1, between_fixes=True)
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+    assert peaks[1] < 1.2 * peaks[0], peaks  # the sums, not the realizations, are kept
+
+
+def test_checks_do_not_depend_on_between_fixes_in_a_long_scenario():
+    from kfcal_helpers.calibration.montecarlo import CHUNK_SIZE, chunk_size
+
+    params = CalibrationParams(imu_rate=1000.0, duration=60.0)
+    assert chunk_size(params) < CHUNK_SIZE  # several chunks of a size set by the realization's length
+    n = chunk_size(params) + 7
+    plain = run_monte_carlo(params, n_runs=n, seed=1).checks()
+    with_between = run_monte_carlo(params, n_runs=n, seed=1, between_fixes=True).checks()
+    for name in CHECK_NAMES:
+        assert plain[name].worst == with_between[name].worst, name
 
 
 def test_between_fixes_catches_a_filter_that_holds_P():

@@ -12,7 +12,6 @@ from kfcal_helpers.coop import (
     run_filter,
     truth_model_test,
     fit_q_scale,
-    tune_q_scale,
 )
 from kfcal_helpers.coop.filters import FilterSetup
 
@@ -144,11 +143,6 @@ def test_fewer_measurements_grow_the_covariance(log):
     sparse = run_filter("ekf", log.every(20).y, SHORT)
     assert np.trace(sparse.P[-2]) > np.trace(full.P[-2])
     assert np.isfinite(sparse.nis).sum() == len(range(20, log.n_samples, 20))
-
-
-def test_tune_q_scale_picks_truth_scale(log):
-    best, avg = tune_q_scale("ekf", log.y, [0.01, 1.0, 100.0], SHORT)
-    assert best == 1.0 and avg.shape == (3,) and avg[0] > avg[1] > avg[2]
 
 
 def test_fit_q_scale_maximum_likelihood():

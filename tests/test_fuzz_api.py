@@ -58,7 +58,8 @@ def _file(tmp):
 # (id, call(tmp_path, log) -> anything, regex the ValueError message must match)
 BAD = [
     # run_monte_carlo
-    ("mc seed str", lambda t, lg: run_monte_carlo(n_runs=2, seed="x"), r"seed must be None or an integer >= 0"),
+    ("mc seed str", lambda t, lg: run_monte_carlo(n_runs=2, seed="x"), r"seed must be None or an integer in \[0, 2\*\*63 - 1\]"),
+    ("mc seed huge", lambda t, lg: run_monte_carlo(n_runs=2, seed=2**70), r"seed must be"),
     ("mc seed float", lambda t, lg: run_monte_carlo(n_runs=2, seed=1.5), r"seed must be"),
     ("mc seed negative", lambda t, lg: run_monte_carlo(n_runs=2, seed=-1), r"seed must be"),
     ("mc seed bool", lambda t, lg: run_monte_carlo(n_runs=2, seed=True), r"seed must be"),

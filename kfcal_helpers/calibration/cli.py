@@ -146,7 +146,7 @@ def _params(args):
 
 
 def run(args) -> int:
-    from ..cli import dumps_json
+    from ..output import dumps_json
 
     require_int("--runs", args.runs, minimum=2)
     if args.figures is not None:

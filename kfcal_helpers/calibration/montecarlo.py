@@ -54,7 +54,7 @@ from scipy import stats
 
 from ..consistency import Check, chi2_bounds
 from ..progress import progress_bar as _progress_bar
-from ..validation import require_choice, require_finite, require_int
+from ..validation import require_choice, require_finite, require_int, require_seed
 from .error_model import ErrorStateModel
 from .filters import batch_filter, between_fixes as _between_fix_steps, covariance_sequence, run_filterpy
 from .params import CalibrationParams
@@ -255,18 +255,11 @@ _BETWEEN_DESCRIPTION = "ensemble variance of the 200 Hz error between fixes vs t
 class _BetweenSums:
     """Running sums of the 200 Hz error over realizations: O(n_imu) memory, whatever N."""
 
-    def __init__(self, params: CalibrationParams, between_fixes):
-        if not isinstance(between_fixes, (bool, np.bool_)):
-            raise ValueError(f"between_fixes must be True or False, got {between_fixes!r}")
+    def __init__(self, params: CalibrationParams):
         self.params = params
         self.n = 0
         self.e = np.zeros((params.n_imu, 3))
         self.ee = np.zeros((params.n_imu, 3, 3))
-
-    @staticmethod
-    def true_errors(sim) -> np.ndarray:
-        """The true error state at every sample, (n, n_imu, 3)."""
-        return sim.dx
 
     def add(self, dx_full, x_full):
         e = dx_full - x_full
@@ -343,12 +336,14 @@ def _realization_bytes(params: CalibrationParams, between_fixes: bool = False) -
     return per_sample * params.n_imu + _BYTES_PER_FIX * params.n_gps
 
 
-def chunk_size(params: CalibrationParams, between_fixes: bool = False) -> int:
+def chunk_size(params: CalibrationParams) -> int:
     """Realizations simulated together for ``params``: :data:`CHUNK_SIZE`, or fewer when the
-    realizations are long, so that the estimated peak stays under :data:`MEMORY_LIMIT`
-    (at least 1; :func:`estimate_run` refuses runs where even 1 does not fit)."""
+    realizations are long, so that the estimated peak stays under :data:`MEMORY_LIMIT` even with
+    ``between_fixes`` (at least 1; :func:`estimate_run` refuses runs where even 1 does not fit).  It does
+    not depend on ``between_fixes``, so the random draws, and the seven checks, are the same with and
+    without it."""
     room = MEMORY_LIMIT - _fixed_bytes(params)
-    return int(max(1, min(CHUNK_SIZE, room // _realization_bytes(params, between_fixes))))
+    return int(max(1, min(CHUNK_SIZE, room // _realization_bytes(params, between_fixes=True))))
 
 
 def estimate_run(params: CalibrationParams, n_runs: int, engine: str = "batch",
@@ -360,7 +355,7 @@ def estimate_run(params: CalibrationParams, n_runs: int, engine: str = "batch",
     the arguments in the message).  ``extra_bytes``: what the caller needs after the Monte Carlo,
     while its result is alive (the command line's figures)."""
     per_run = _realization_bytes(params, between_fixes)
-    peak = _fixed_bytes(params) + max(min(n_runs, chunk_size(params, between_fixes)) * per_run, extra_bytes)
+    peak = _fixed_bytes(params) + max(min(n_runs, chunk_size(params)) * per_run, extra_bytes)
     if peak > MEMORY_LIMIT:
         raise ValueError(
             f"{params_name}: one realization of {params.n_imu} IMU samples and {params.n_gps} GPS fixes needs about "
@@ -419,26 +414,28 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
     if (~missing).sum() < 2:
         raise ValueError(f"missing_fixes must leave at least 2 of the {params.n_gps} GPS fixes, "
                          f"got {int((~missing).sum())}")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
-        raise ValueError(f"seed must be None or an integer >= 0, got {seed!r}")
+    seed = require_seed("seed", seed)
+    if not isinstance(between_fixes, (bool, np.bool_)):
+        raise ValueError(f"between_fixes must be True or False, got {between_fixes!r}")
+    between_fixes = bool(between_fixes)
     estimate_run(params, n_runs, engine, between_fixes=between_fixes)
 
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
     cov = covariance_sequence(params, missing, model)
-    bsums = _BetweenSums(params, between_fixes) if between_fixes is not False else None
+    bsums = _BetweenSums(params) if between_fixes else None
     P, P_prior, S, K = cov
     P_post = P[params.fix_indices]
     P_post_inv = np.linalg.inv(P_post)
     S_inv = np.linalg.inv(S)
     sums = _Sums(params.n_gps)
-    chunk = chunk_size(params, between_fixes)
+    chunk = chunk_size(params)
     sizes = [chunk] * (n_runs // chunk) + ([n_runs % chunk] if n_runs % chunk else [])
     bar = _progress_bar(n_runs, f"Monte Carlo ({engine})", progress)
     for size in sizes:
         sim = simulate(params, size, rng, truth=truth, missing_fixes=missing if missing.any() else None)
         dx, dz = sim.dx_at_fixes, sim.dz
-        dx_full = bsums.true_errors(sim) if bsums is not None else None
+        dx_full = sim.dx if bsums is not None else None  # the true error state at every sample, (n, n_imu, 3)
         del sim
         if engine == "batch":
             res = batch_filter(params, dz, full_rate=False, covariances=cov, model=model)

@@ -33,7 +33,6 @@ from .filters import (
     run_filter,
     run_lkf,
     run_ukf,
-    tune_q_scale,
     tuned_Q,
 )
 from .model import (
@@ -70,7 +69,7 @@ from .tables import format_matrix, format_number, format_table
 __all__ = [
     "COURSE_LOG_VARIABLE", "course_log", "course_log_path", "CoopLog", "load_log", "write_log_csv", "write_log_mat",
     "FILTERS", "TUNED_Q_SCALE", "UKF_POINTS", "CoopEKF", "FilterResult", "QScaleFit", "fit_q_scale", "make_ekf", "make_lkf", "make_ukf",
-    "run_ekf", "run_filter", "run_lkf", "run_ukf", "tune_q_scale", "tuned_Q",
+    "run_ekf", "run_filter", "run_lkf", "run_ukf", "tuned_Q",
     "MEAS_ANGLES", "MEAS_LABELS", "N_MEAS", "N_STATES", "NOISE_MODELS", "STATE_ANGLES", "STATE_LABELS", "CoopParams",
     "discretize", "dynamics", "jacobian_A", "jacobian_B", "jacobian_C", "measure", "measurement_mean",
     "measurement_residual", "nominal_trajectory", "observability_matrix", "state_add", "state_mean",

@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 from ..consistency import chi2_bounds
-from ..cli import dumps_json
+from ..output import dumps_json
 from ..validation import MAX_SEED, cli_float, cli_int, require_int, require_positive
 from .data import load_log
 from .filters import FILTERS, TUNED_Q_SCALE, fit_q_scale, run_filter
@@ -95,13 +95,13 @@ def log_summary(result, alpha: float = 0.05) -> dict:
 
 def run(args) -> int:
     """Run the sub-command; returns the exit code (ValueError for bad input)."""
-    every = require_int("every", args.every, minimum=1)
+    every = require_int("--every", args.every, minimum=1)
     q_scale = parse_q_scale(args.q_scale)
     t0 = time.perf_counter()
     if args.runs is not None:
         if args.log is not None:
             raise ValueError("--runs: a truth-model Monte Carlo simulates its own data; do not give --log with it")
-        runs = require_int("runs", args.runs, minimum=1)
+        runs = require_int("--runs", args.runs, minimum=1)
         if q_scale == "auto":
             raise ValueError("q-scale 'auto' fits Q to a log; a truth-model Monte Carlo needs a number or the default")
         params = CoopParams()

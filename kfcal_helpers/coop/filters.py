@@ -70,7 +70,6 @@ __all__ = [
     "run_ekf",
     "run_ukf",
     "run_filter",
-    "tune_q_scale",
     "measurement_subset",
     "robust_sqrt",
     "QScaleFit",
@@ -578,28 +577,3 @@ def fit_q_scale(name: str, y, scales, params: CoopParams | None = None, alpha: f
     bounds = chi2_bounds(len(results[0].measurements), n, alpha)
     return QScaleFit(name, scales, ll, nis, bounds, float(scales[int(np.argmax(ll))]))
 
-
-def tune_q_scale(name: str, y, scales, params: CoopParams | None = None, **kwargs):
-    """NIS-based tuning on a log without truth: the scale s of ``Q = s * Qtrue`` whose
-    time-averaged NIS is closest (in ratio) to its expected value 5.
-
-    A fit, not a test: the NIS of the chosen filter on the same log is then near 5 by
-    construction, and on a 1000-step log many scales give a NIS inside the bounds.  Prefer
-    :func:`fit_q_scale` (maximum likelihood) to fit, and truth-model tests to tune.
-
-    Parameters
-    ----------
-    name : "lkf", "ekf" or "ukf"; y : (K, 5) measurements; scales : sequence of floats > 0
-    params : CoopParams (its ``Qtrue`` is scaled); kwargs : passed to :func:`run_filter`
-
-    Returns
-    -------
-    (best_scale, averages) : float and array (len(scales),) of time-averaged NIS
-    """
-    p = params if params is not None else CoopParams()
-    scales = [require_positive("scales", s) for s in np.atleast_1d(scales)]
-    if not scales:
-        raise ValueError("scales must hold at least one value")
-    averages = np.array([run_filter(name, y, p, Q=s * p.Qtrue, **kwargs).time_average_nis() for s in scales])
-    best = scales[int(np.argmin(np.abs(np.log(averages / N_MEAS))))]
-    return best, averages
