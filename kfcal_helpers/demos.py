@@ -96,16 +96,6 @@ def _model(params: CalibrationParams) -> ErrorStateModel:
     return error_state_model(params)
 
 
-def _missing(params: CalibrationParams, missing_fixes) -> np.ndarray:
-    if missing_fixes is None:
-        return np.zeros(params.n_gps, bool)
-    missing = np.asarray(missing_fixes)
-    if missing.shape != (params.n_gps,) or missing.dtype != bool:
-        raise ValueError(f"missing_fixes must be a bool array of shape ({params.n_gps},), "
-                         f"got {missing.dtype} {missing.shape}")
-    return missing
-
-
 def sample_noise_at_fixes(params: CalibrationParams, n_runs: int, rng: np.random.Generator):
     """Random draws that drive the filter's error from fix to fix, for ``n_runs`` realizations.
 

@@ -15,7 +15,6 @@ import numpy as np
 __all__ = [
     "require_finite",
     "require_positive",
-    "require_nonnegative",
     "require_int",
     "require_choice",
     "require_shape",
@@ -44,14 +43,6 @@ def require_positive(name: str, value) -> float:
     value = require_finite(name, value)
     if value <= 0:
         raise ValueError(f"{name} must be > 0, got {value!r}")
-    return value
-
-
-def require_nonnegative(name: str, value) -> float:
-    """Return ``value`` as a float; raise unless it is finite and >= 0."""
-    value = require_finite(name, value)
-    if value < 0:
-        raise ValueError(f"{name} must be >= 0, got {value!r}")
     return value
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -110,6 +110,3 @@ class CalibrationParams:
         if unknown:
             raise ValueError(f"changes must name fields of CalibrationParams, got {unknown}")
         return replace(self, **changes)
-
-    def as_dict(self) -> dict:
-        return asdict(self)
