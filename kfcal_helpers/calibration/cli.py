@@ -155,11 +155,12 @@ def run(args) -> int:
         check_directory(args.figures, "--figures")  # before the Monte Carlo, not after it
         use_agg_backend()
     params = _params(args)
+    between = bool(args.json) and params.n_imu > params.n_gps  # the 200 Hz check, when samples lie between fixes
     # before anything of the scenario's size is allocated: refuse what cannot fit or would take hours
     estimate_run(params, args.runs, args.engine, runs_name="--runs",
                  params_name="--duration, --imu-rate, --gps-rate" + (", --figures" if args.figures else ""),
                  extra_bytes=FIGURES_BYTES + FIGURES_BYTES_PER_FIX2 * params.n_gps**2 if args.figures else 0.0,
-                 between_fixes=bool(args.json) and params.n_imu > params.n_gps)
+                 between_fixes=between)
     windows = [parse_outage(text, "--outage") for text in args.outage]
     missing = outage_mask(params, windows, name="--outage") if windows else None
     if missing is not None and (~missing).sum() < 2:
@@ -167,7 +168,7 @@ def run(args) -> int:
                          f"at least 2 must remain")
     mc = run_monte_carlo(params, n_runs=args.runs, seed=args.seed, engine=args.engine,
                          truth=args.truth, progress=None, missing_fixes=missing,
-                         between_fixes=bool(args.json) and params.n_imu > params.n_gps)
+                         between_fixes=between)
     written = write_figures(mc, args.figures, seed=args.seed) if args.figures else []
     if args.json:
         d = result_to_dict(mc, windows)

@@ -30,7 +30,7 @@ from scipy import stats
 
 from ..consistency import Check, chi2_bounds, inside_fraction
 from ..progress import progress
-from ..validation import require_choice, require_int
+from ..validation import require_choice, require_int, require_seed
 from .filters import FILTERS, run_filter
 from .model import N_MEAS, N_STATES, CoopParams
 from .simulation import simulate_measurements, simulate_truth
@@ -164,7 +164,7 @@ def simulate_runs(n_runs: int, seed: int = 0, params: CoopParams | None = None, 
     """The truths (N, K, 6) and measurements (N, K, 5) that :func:`truth_model_test` draws for
     ``n_runs``, ``seed``, ``params`` and ``every`` (so a single run can be re-run and plotted)."""
     n_runs = require_int("n_runs", n_runs, minimum=1)
-    seed = require_int("seed", seed, minimum=0)
+    seed = require_seed("seed", seed, allow_none=False)
     every = require_int("every", every, minimum=1)
     p = params if params is not None else CoopParams()
     rng = np.random.default_rng(seed)
@@ -199,7 +199,7 @@ def truth_model_test(name: str, n_runs: int = 50, seed: int = 0, params: CoopPar
     """
     name = require_choice("filter", name, FILTERS)
     n_runs = require_int("n_runs", n_runs, minimum=1)
-    seed = require_int("seed", seed, minimum=0)
+    seed = require_seed("seed", seed, allow_none=False)
     every = require_int("every", every, minimum=1)
     workers = default_workers() if workers is None else require_int("workers", workers, minimum=1)
     nees_bounds = chi2_bounds(N_STATES, n_runs, alpha)
