@@ -5,18 +5,23 @@ With N Monte Carlo runs and a statistic of dimension n, the run-averaged NEES
 divided by N.  The two-sided acceptance region at significance ``alpha`` is
 ``[chi2.ppf(alpha/2, N*n)/N, chi2.ppf(1 - alpha/2, N*n)/N]``.  The same formula
 with N replaced by the number of time steps K bounds the time average of one run.
+
+The Monte Carlo results of every problem share one interface (:class:`MonteCarloSummary`):
+``n_runs``, ``alpha`` and ``checks() -> {name: Check}``, printed by :func:`format_checks`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 from scipy import stats
 
 from .validation import require_finite, require_int
 
-__all__ = ["chi2_bounds", "normalized_squares", "nees", "nis", "inside_fraction", "Check"]
+__all__ = ["chi2_bounds", "normalized_squares", "nees", "nis", "inside_fraction", "Check", "MonteCarloSummary",
+           "format_checks"]
 
 
 def chi2_bounds(dim: int, n_samples: int, alpha: float = 0.05) -> tuple[float, float]:
@@ -138,3 +143,32 @@ class Check:
     def passed(self) -> bool:
         """Pass when every entry is inside the simultaneous band (``worst <= 1``)."""
         return self.worst <= 1.0
+
+
+@runtime_checkable
+class MonteCarloSummary(Protocol):
+    """What every problem's Monte Carlo result offers: ``n_runs`` (realizations), ``alpha``
+    (significance of the bands) and ``checks()``, the checks by name."""
+
+    n_runs: int
+    alpha: float
+
+    def checks(self) -> dict: ...
+
+
+def format_checks(checks) -> str:
+    """A fixed-precision text table of checks, one line each: name, share inside the pointwise
+    band, worst deviation / simultaneous bound (> 1 fails), verdict.
+
+    checks : ``{name: Check}``, or an object with ``checks()`` (a Monte Carlo result)."""
+    if hasattr(checks, "checks"):
+        checks = checks.checks()
+    if not isinstance(checks, dict) or not all(isinstance(c, Check) for c in checks.values()):
+        raise ValueError("checks must be a dict name -> Check, or a Monte Carlo result with checks()")
+    width = max([22, *(len(n) for n in checks)])
+    lines = [f"{'check':<{width}} {'inside':>7} {'worst':>7}  verdict",
+             f"{'-' * width} {'-' * 7} {'-' * 7}  -------"]
+    for name, c in checks.items():
+        verdict = "pass" if c.passed else "FAIL"
+        lines.append(f"{name:<{width}} {c.inside_fraction:7.3f} {c.worst:7.2f}  {verdict}")
+    return "\n".join(lines)

@@ -20,6 +20,10 @@ __all__ = [
     "require_shape",
     "require_covariance",
     "require_seed",
+    "require_instance",
+    "require_probability",
+    "require_mask",
+    "as_generator",
     "cli_int",
     "cli_float",
 ]
@@ -104,6 +108,55 @@ def require_seed(name: str, value, allow_none: bool = True):
         none = "None or " if allow_none else ""
         raise ValueError(f"{name} must be {none}an integer in [0, 2**63 - 1], got {value!r}")
     return int(value)
+
+
+def require_instance(name: str, value, cls, allow_none: bool = False):
+    """Return ``value``; raise unless it is an instance of ``cls`` (or None when ``allow_none``),
+    naming the type that was given: ``params must be a CalibrationParams, got dict``."""
+    if value is None and allow_none:
+        return None
+    if not isinstance(value, cls):
+        none = " or None" if allow_none else ""
+        raise ValueError(f"{name} must be a {cls.__name__}{none}, got {type(value).__name__}")
+    return value
+
+
+def require_probability(name: str, value, closed_upper: bool = False) -> float:
+    """Return ``value`` as a float; raise unless it is a real number in (0, 1) (in (0, 1] when
+    ``closed_upper``), e.g. a significance level ``alpha``."""
+    upper = "]" if closed_upper else ")"
+    ok = isinstance(value, (Real, np.floating, np.integer)) and not isinstance(value, bool)
+    if ok:
+        v = float(value)
+        ok = math.isfinite(v) and 0.0 < v and (v <= 1.0 if closed_upper else v < 1.0)
+    if not ok:
+        raise ValueError(f"{name} must be a number in (0, 1{upper}, got {value!r}")
+    return v
+
+
+def require_mask(name: str, value, size: int, allow_none: bool = True):
+    """Return ``value`` as a bool array of shape (size,) (None stays None when ``allow_none``);
+    raise unless it is a bool array-like of exactly that shape."""
+    if value is None and allow_none:
+        return None
+    arr = np.asarray(value) if not isinstance(value, (str, bytes)) else np.asarray(None)
+    if arr.dtype != bool or arr.shape != (size,):
+        none = "None or " if allow_none else ""
+        got = f"shape {arr.shape}, dtype {arr.dtype}" if arr.dtype != object else type(value).__name__
+        raise ValueError(f"{name} must be {none}a bool array of shape ({size},), got {got}")
+    return arr
+
+
+def as_generator(name: str, seed) -> np.random.Generator:
+    """``numpy.random.default_rng(seed)`` for an int seed in [0, 2**63 - 1]; a Generator is returned
+    as is (and advanced by the caller's draws).  Raise naming ``name`` otherwise.  The one way this
+    package turns "a seed or a Generator" into a Generator."""
+    if isinstance(seed, np.random.Generator):
+        return seed
+    if seed is None or isinstance(seed, bool) or not isinstance(seed, (Integral, np.integer)) \
+            or not 0 <= seed <= MAX_SEED:
+        raise ValueError(f"{name} must be an integer in [0, 2**63 - 1] or a numpy.random.Generator, got {seed!r}")
+    return np.random.default_rng(int(seed))
 
 
 # ---------------------------------------------------------------------------
