@@ -12,14 +12,18 @@ rather than an error, so the student notebooks run top to bottom unchanged.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
 
-__all__ = ["Feedback", "unanswered", "as_array", "matches", "judge", "chi2_average_bounds", "GENERIC_HINT"]
+__all__ = ["Feedback", "Exercise", "unanswered", "as_array", "matches", "judge", "call_student", "first_line",
+           "chi2_average_bounds", "GENERIC_HINT", "PLACEHOLDER", "PLACEHOLDER_FUNC"]
 
 GENERIC_HINT = "compare your answer with the formula in the notebook, term by term"
+PLACEHOLDER = "replace ... with your answer"
+PLACEHOLDER_FUNC = "write the body of your function (replace ... with your code), then pass the function to the check"
 
 
 @dataclass(frozen=True)
@@ -46,6 +50,82 @@ class Feedback:
 
     def __bool__(self) -> bool:
         return self.correct
+
+
+@dataclass(frozen=True)
+class Exercise:
+    """One exercise's feedback, kept next to its check.
+
+    id : "NN.k" (notebook number, exercise number)
+    praise : the line shown with a correct answer (what the answer teaches)
+    hint : the hint when the answer is wrong in no recognised way
+    hints : ``{mistake key: hint}`` for the common mistakes the check recognises (never the answer)
+    """
+
+    id: str
+    praise: str
+    hint: str = GENERIC_HINT
+    hints: dict = field(default_factory=dict)
+
+    def feedback(self, correct: bool, message: str | None = None, answered: bool = True) -> Feedback:
+        """A Feedback of this exercise: ``message`` defaults to the praise (correct) or the hint."""
+        if message is None:
+            message = self.praise if correct else self.hint
+        return Feedback(self.id, correct, message, answered)
+
+    def mistake(self, key: str) -> Feedback:
+        """The Feedback for the recognised mistake ``key``."""
+        return Feedback(self.id, False, self.hints[key])
+
+    def unanswered(self, placeholder: str = PLACEHOLDER) -> Feedback:
+        """The Feedback while the answer is still the placeholder."""
+        return Feedback(self.id, False, placeholder, answered=False)
+
+    def judge(self, answer, expected, wrong=(), *, rtol: float = 1e-6, atol: float = 1e-12,
+              placeholder: str = PLACEHOLDER) -> Feedback:
+        """:func:`judge` with this exercise's praise and hint; ``wrong`` holds ``(value, mistake key)`` pairs."""
+        pairs = [(value, self.hints[key]) for value, key in wrong]
+        return judge(self.id, answer, expected, pairs, rtol=rtol, atol=atol, praise=self.praise, hint=self.hint,
+                     placeholder=placeholder)
+
+
+def first_line(exc: BaseException, limit: int = 100) -> str:
+    """The first line of an exception's message, cut to ``limit`` characters."""
+    text = str(exc).strip().splitlines()
+    text = text[0] if text else ""
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def call_student(exercise: str, func, cases, what: str = "your function", convert=None):
+    """Call the student's ``func`` once per argument tuple in ``cases``, safely.
+
+    Returns ``(outputs, None)`` with one output per case, or ``(None, Feedback)`` when the function
+    is still the placeholder, is not callable, raises (the exception's name and first line become the
+    hint), or returns the placeholder (None or ...).  ``convert`` (optional) maps each argument before
+    the call (e.g. ``np.asarray``).  Floating-point warnings inside the student's code are silenced:
+    a NaN result is judged by the check, never shown as a warning.
+    """
+    if unanswered(func):
+        return None, Feedback(exercise, False, PLACEHOLDER_FUNC, answered=False)
+    if not callable(func):
+        return None, Feedback(exercise, False, f"expected a function {what}, got {type(func).__name__}: "
+                                               "pass the function itself, without calling it")
+    outs = []
+    for args in cases:
+        if convert is not None:
+            args = tuple(convert(a) for a in args)
+        try:
+            with warnings.catch_warnings(), np.errstate(all="ignore"):
+                warnings.simplefilter("ignore")
+                out = func(*args)
+        except Exception as exc:  # a half-written function: name the exception, never crash
+            return None, Feedback(exercise, False, f"your function raised {type(exc).__name__} on the test input: "
+                                                   f"{first_line(exc)}")
+        if unanswered(out):
+            return None, Feedback(exercise, False, f"your function returns {out!r}: {PLACEHOLDER_FUNC}",
+                                  answered=False)
+        outs.append(out)
+    return outs, None
 
 
 def unanswered(answer) -> bool:
