@@ -7,10 +7,18 @@ Subpackages, one per course problem:
 * :mod:`kfcal_helpers.coop` -- cooperative localization of a ground and an aerial
   robot (LKF, EKF, UKF with NEES/NIS).
 
-Shared modules: :mod:`~kfcal_helpers.consistency` (NEES/NIS and chi-square
-bounds), :mod:`~kfcal_helpers.validation` (argument checks),
+Each holds everything about its problem (model, simulation, filters, Monte Carlo, plots, lecture
+figures, live demos, mistakes, exercises, command-line sub-command) and defines ``PROBLEM``;
+:mod:`~kfcal_helpers.problems` lists them.
+
+Shared modules: :mod:`~kfcal_helpers.consistency` (NEES/NIS, chi-square bounds, checks),
+:mod:`~kfcal_helpers.validation` (argument checks), :mod:`~kfcal_helpers.registry` (what a
+problem provides), :mod:`~kfcal_helpers.figures` (slide files), :mod:`~kfcal_helpers.demos`
+(live-demo machinery), :mod:`~kfcal_helpers.mistakes` (the mistakes table),
+:mod:`~kfcal_helpers.exercises` (the exercise-check harness), :mod:`~kfcal_helpers.style`,
 :mod:`~kfcal_helpers.progress` (progress bars that stay quiet under tests),
-:mod:`~kfcal_helpers.output` (strict JSON and the files being written, for the command line).
+:mod:`~kfcal_helpers.output` (strict JSON and the files being written, for the command line),
+:mod:`~kfcal_helpers.cli` (``python -m kfcal_helpers``).
 """
 
 __version__ = "0.1.0"

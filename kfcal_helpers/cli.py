@@ -1,8 +1,8 @@
 """Command line: python -m kfcal_helpers COMMAND [options].
 
-Each problem registers its sub-command through two functions in its own
-``cli`` module: ``add_parser(subparsers)`` and ``run(args) -> int``; the lecture
-figures of both problems (``figures``) are registered from :mod:`kfcal_helpers.figures`.
+The sub-commands come from the problem list (:data:`kfcal_helpers.problems.PROBLEMS`): each problem's
+``add_cli(subparsers)`` adds its command, whose parser sets ``run(args) -> int``; ``figures`` (the
+lecture figures of every problem) is the shared command of :mod:`kfcal_helpers.figures`.
 
 Whatever a user types, the command ends in one of these ways, never in a traceback:
 
@@ -62,13 +62,12 @@ class OneLineParser(argparse.ArgumentParser):
 
 def _build_parser() -> argparse.ArgumentParser:
     from . import figures as figures_cli
-    from .calibration import cli as calibration_cli
-    from .coop import cli as coop_cli
+    from . import problems
 
     parser = OneLineParser(prog=PROG, description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
-    calibration_cli.add_parser(sub)
-    coop_cli.add_parser(sub)
+    for problem in problems.PROBLEMS:
+        problem.add_cli(sub)
     figures_cli.add_parser(sub)
     return parser
 
@@ -126,7 +125,7 @@ def main(argv=None) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``), run the sub-command, return the exit status."""
     words = sys.argv[1:] if argv is None else list(argv)
     # the command's name before the (slow) imports of argument parsing, for a Ctrl-C during them
-    known = words[0] if words and words[0] in ("calibrate", "coop", "figures") else None
+    known = words[0] if words and re.fullmatch(r"[a-z][a-z_-]*", words[0]) else None
     state = {"command": f"{PROG} {known}" if known else PROG}
     previous = _install_sigint(state)
     try:

@@ -5,10 +5,10 @@ mistakes table.
 A problem package (``kfcal_helpers.calibration``, ``kfcal_helpers.coop``, or a third one)
 defines ``PROBLEM = Problem(...)`` in its ``__init__``:
 
-* ``name`` -- its command-line sub-command and the key of its results (``"calibration"``);
+* ``name`` -- its key (``"calibration"``, ``"coop"``), e.g. in the mistakes table's per-problem settings;
 * ``title`` -- one line for ``--help`` and the tables;
-* ``add_cli(subparsers)`` -- registers its sub-command on an argparse sub-parsers object; the parser
-  it adds must ``set_defaults(run=...)`` with ``run(args) -> int``;
+* ``add_cli(subparsers)`` -- registers its sub-command (``calibrate``, ``coop``) on an argparse
+  sub-parsers object; the parser it adds must ``set_defaults(run=...)`` with ``run(args) -> int``;
 * ``figures`` -- its :class:`LectureFigure` entries, in lecture order; ``make(data)`` draws one from
   ``figure_data()``, the problem's lazily computed, seeded results;
 * ``mistakes`` -- ``{mistake name: what it does}``, the correct filter first;

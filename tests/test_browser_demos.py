@@ -35,7 +35,8 @@ from pathlib import Path
 
 import pytest
 
-from kfcal_helpers.demos import calibration_controls, coop_controls
+from kfcal_helpers.calibration.demos import calibration_controls
+from kfcal_helpers.coop.demos import coop_controls
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = {"17": "17_calibration_live_demo.ipynb", "18": "18_coop_live_demo.ipynb"}

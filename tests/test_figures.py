@@ -1,19 +1,15 @@
-"""``python -m kfcal_helpers figures``: every listed file written (PNG 1280x720, SVG on request),
-``--list``, bad input; and the two ``calibrate`` fixes (figures with the outages, ``outages`` in JSON)."""
+"""``python -m kfcal_helpers figures``: every figure of every problem written (PNG 1280x720, SVG on
+request), ``--list``, bad input.  Each problem's own figures are tested in tests/test_<problem>_figures.py."""
 
-import json
 import struct
 import xml.etree.ElementTree as ET
 
 import matplotlib
 import matplotlib.pyplot as plt
-import numpy as np
 import pytest
 
-from kfcal_helpers.calibration import CalibrationParams, run_monte_carlo
-from kfcal_helpers.calibration import cli as calibration_cli
 from kfcal_helpers.cli import main
-from kfcal_helpers.figures import FIGURES, calibration_realization, write_figures
+from kfcal_helpers.figures import all_figures, write_figures
 from kfcal_helpers.style import SLIDE_DPI, SLIDE_SIZE
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -33,6 +29,9 @@ def run_cli(capsys, argv):
     code = main(argv)
     out, err = capsys.readouterr()
     return code, out.splitlines(), err
+
+
+FIGURES = all_figures()
 
 
 def test_every_listed_figure_written_as_slide_png(tmp_path, capsys):
@@ -105,82 +104,3 @@ def test_write_figures_validates_its_arguments(tmp_path):
     with pytest.raises(ValueError, match="names"):
         write_figures(tmp_path, names=[])
     assert list(tmp_path.iterdir()) == [tmp_path / "f"]
-
-
-# ---------------------------------------------------------------------------
-# calibrate --figures with --outage, and --json's "outages"
-PARAMS = CalibrationParams()
-# fixes every 0.2 s; the window 5:10 s removes the fixes at 5.0, 5.2, ..., 9.8 s (indices 25..49)
-GAP = np.arange(25, 50)
-
-
-def test_realization_has_the_outage():
-    missing = np.zeros(PARAMS.n_gps, bool)
-    missing[GAP] = True
-    sim, fr = calibration_realization(PARAMS, missing, seed=4)
-    sim0, fr0 = calibration_realization(PARAMS, None, seed=4)
-    assert np.isnan(sim.z[0, GAP]).all() and not np.isnan(np.delete(sim.z[0], GAP, axis=0)).any()
-    assert not np.isnan(sim0.z).any()
-    assert np.all(fr.K[GAP] == 0) and np.all(fr0.K[GAP] != 0)  # no update inside the gap
-    j0, j1 = GAP[0] * PARAMS.steps_per_fix, (GAP[-1] + 1) * PARAMS.steps_per_fix
-    assert np.all(np.diff(fr.P[j0:j1, 0, 0]) > 0)  # position variance grows through the gap
-    # the same draws: identical before the gap, different from its first missing fix on
-    np.testing.assert_array_equal(fr.x[:j0], fr0.x[:j0])
-    assert np.abs(fr.x[j0 + 1:] - fr0.x[j0 + 1:]).max() > 0
-
-
-def test_calibrate_figures_draw_the_outage(tmp_path, capsys, monkeypatch):
-    cases = []
-    original = calibration_cli.figure_case
-
-    def recording_figure_case(mc, seed=0):
-        cases.append(original(mc, seed))
-        return cases[-1]
-
-    monkeypatch.setattr(calibration_cli, "figure_case", recording_figure_case)
-    assert main(["calibrate", "--runs", "20", "--seed", "4", "--outage", "5:10", "--figures", str(tmp_path),
-                 "--json"]) == 0
-    d = json.loads(capsys.readouterr().out)
-    assert d["outages"] == [[5.0, 10.0]]
-    assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "calib_checks.png", "calib_errors.png", "calib_sigma_sawtooth.png"]
-    assert png_size(tmp_path / "calib_errors.png") == SLIDE_PX
-    (case,) = cases
-    sim, fr = case.realization  # the realization the figures drew
-    assert np.flatnonzero(np.isnan(sim.z[0, :, 0])).tolist() == GAP.tolist()
-    assert np.all(fr.K[GAP] == 0)
-    assert case.spans == [(5.0, 10.0)]  # shaded in the figures
-    # the same realization as the function builds directly, with the same seed and gap
-    np.testing.assert_array_equal(fr.x, calibration_realization(PARAMS, case.missing, seed=4)[1].x)
-
-
-def test_calibrate_json_lists_the_outages(capsys):
-    assert main(["calibrate", "--runs", "5", "--outage", "14:29", "--outage", "2.5:4", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["outages"] == [[14.0, 29.0], [2.5, 4.0]]
-    assert main(["calibrate", "--runs", "5", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["outages"] == []
-    mc = run_monte_carlo(n_runs=2, seed=0)
-    assert calibration_cli.result_to_dict(mc)["outages"] == []
-
-
-def test_calibrate_figures_into_a_file_fails_before_the_monte_carlo(tmp_path, capsys):
-    (tmp_path / "f").write_text("x")
-    assert main(["calibrate", "--runs", "100000000", "--figures", str(tmp_path / "f")]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "--figures" in err
-
-
-def test_legend_below_leaves_one_legend_under_the_panels():
-    from kfcal_helpers.coop.plots import legend_below, plot_states
-
-    t = np.linspace(0, 1, 11)
-    x = np.zeros((11, 6))
-    fig = plot_states(t, x, truth=x + 1)
-    assert sum(ax.get_legend() is not None for ax in fig.axes) + len(fig.legends) == 1
-    leg = legend_below(fig)
-    assert leg is not None and fig.legends == [leg]
-    assert all(ax.get_legend() is None for ax in fig.axes)
-    assert [t.get_text() for t in leg.get_texts()] == ["estimate", "truth"]
-    single = plot_states(t, x)
-    assert legend_below(single) is None and not single.legends
-    plt.close("all")

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from scipy.io import savemat
 
-import kfcal_helpers.figures as figures_module
+from kfcal_helpers import problems
 from kfcal_helpers.calibration import cli as calibration_cli
 from kfcal_helpers.calibration.params import CalibrationParams
 from kfcal_helpers.cli import main
@@ -219,6 +219,13 @@ def _one_error_line(err: str, command: str | None):
     assert err.startswith(f"{PROG} {command}: error: " if command else "@") or err.startswith(f"{PROG}: error: "), err
 
 
+def _no_figure_data(monkeypatch, fail):
+    """Every problem's figure data (the long work behind the figures) raises ``fail``."""
+    import dataclasses
+
+    monkeypatch.setattr(problems, "PROBLEMS", tuple(dataclasses.replace(p, figure_data=fail) for p in problems.PROBLEMS))
+
+
 @pytest.mark.parametrize("argv, words", BAD, ids=[" ".join(a)[:60] or "(nothing)" for a, _ in BAD])
 def test_bad_input_one_line_exit_2(argv, words, tmp_path, capsys, monkeypatch):
     """Exit 2, nothing on stdout, exactly one stderr line naming the option, no file written, and
@@ -231,7 +238,7 @@ def test_bad_input_one_line_exit_2(argv, words, tmp_path, capsys, monkeypatch):
 
     if "--every" not in argv:  # the only row that fails after reading its input
         monkeypatch.setattr(calibration_cli, "run_monte_carlo", no_monte_carlo)
-    monkeypatch.setattr(figures_module, "FigureData", no_monte_carlo)
+    _no_figure_data(monkeypatch, no_monte_carlo)
     code, out, err = _run(argv, capsys)
     assert code == 2 and out == ""
     command = argv[0] if argv and argv[0] in ("calibrate", "coop", "figures") else None
@@ -317,7 +324,7 @@ def test_unwritable_output_refused_before_the_work(tmp_path, capsys, monkeypatch
         raise AssertionError("long work started")
 
     monkeypatch.setattr(calibration_cli, "run_monte_carlo", no_work)
-    monkeypatch.setattr(figures_module, "FigureData", no_work)
+    _no_figure_data(monkeypatch, no_work)
     for argv, word in ((["calibrate", "--figures", str(tmp_path / "out")], "--figures"),
                        (["figures", str(tmp_path)], "DIR")):
         code, out, err = _run(argv, capsys)

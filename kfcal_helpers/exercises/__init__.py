@@ -1,20 +1,16 @@
-"""Self-checks for the exercises at the end of each notebook.
+"""The harness of the exercise self-checks at the end of each notebook.
 
-Each ``check_*`` function takes the student's answer and returns a
-:class:`~kfcal_helpers.exercises.Feedback` that shows as one line: correct, or a
-hint at the likely mistake (wrong sign, swapped variances, missing wrap...) without the
-answer.  Worked solutions are in ``notebooks/solutions/``.
-
-Modules by notebook group: :mod:`.calibration` (01-07, 15, 16), :mod:`.coop` (08-13),
-:mod:`.mistakes` (14), :mod:`.demos` (17, 18); all their checks are importable from here.
+The checks themselves live with their problem: :mod:`kfcal_helpers.calibration.exercises`
+(notebooks 01-07, 14-17) and :mod:`kfcal_helpers.coop.exercises` (08-14, 18).  Each is named
+``check_<topic>(answer, *, settings...)``: the student's answer (a number, an array or a function)
+first, every setting keyword-only.  It returns a :class:`Feedback` that shows as one line: correct,
+or a hint at the likely mistake (wrong sign, swapped variances, missing wrap...) without the answer.
+Each exercise's texts are one :class:`Exercise` record (id, praise, hint, the hints of its common
+mistakes) next to its check.  Worked solutions are in ``notebooks/solutions/``.
 """
 
-from . import calibration, coop, demos, mistakes
-from ._core import Feedback, judge, matches, unanswered
-from .calibration import *  # noqa: F401,F403
-from .coop import *  # noqa: F401,F403
-from .demos import *  # noqa: F401,F403
-from .mistakes import *  # noqa: F401,F403
+from ._core import (GENERIC_HINT, PLACEHOLDER, PLACEHOLDER_FUNC, Exercise, Feedback, as_array, call_student,
+                    chi2_average_bounds, first_line, judge, matches, unanswered)
 
-__all__ = ["Feedback", "judge", "matches", "unanswered",
-           *calibration.__all__, *coop.__all__, *mistakes.__all__, *demos.__all__]
+__all__ = ["Feedback", "Exercise", "judge", "matches", "unanswered", "as_array", "call_student", "first_line",
+           "chi2_average_bounds", "GENERIC_HINT", "PLACEHOLDER", "PLACEHOLDER_FUNC"]

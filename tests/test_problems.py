@@ -1,0 +1,166 @@
+"""The problem list drives the command line, the lecture figures and the mistakes table: a toy third
+problem, registered in the list, appears in ``--help``, runs as a sub-command, is listed and written by
+``figures`` and has its rows in the mistakes table -- without editing any shared module.  And the
+imports of the package point one way: problem code -> shared code, never back, never across."""
+
+import ast
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import kfcal_helpers
+from kfcal_helpers import problems
+from kfcal_helpers.cli import main
+from kfcal_helpers.consistency import Check, format_checks
+from kfcal_helpers.figures import all_figures, write_figures
+from kfcal_helpers.mistakes import all_mistakes, format_mistake_table, mistake_table
+from kfcal_helpers.registry import LectureFigure, MistakeRow, Problem
+
+
+def _toy_cli(subparsers):
+    p = subparsers.add_parser("toy", help="run the toy problem")
+    p.add_argument("--gain", type=float, default=1.0)
+
+    def run(args):
+        if args.gain <= 0:
+            raise ValueError("--gain must be > 0")
+        print(f"toy ran with gain {args.gain:g}")
+        return 0
+
+    p.set_defaults(run=run)
+
+
+def _toy_line(data):
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, data["slope"]])
+    return fig
+
+
+def _toy_row(mistake, n_runs=None, params=None, alpha=0.05):
+    n_runs = 10 if n_runs is None else n_runs
+    stat = np.array([0.0 if mistake == "toy_correct" else 3.0])
+    check = Check("bias", "toy bias", stat, np.zeros(1), -np.ones(1), np.ones(1), -2 * np.ones(1), 2 * np.ones(1))
+    return MistakeRow("toy", mistake, TOY.mistakes[mistake], {"bias": check}, {"n_runs": n_runs, "alpha": alpha})
+
+
+TOY = Problem(name="toy", title="a toy problem", add_cli=_toy_cli,
+              figures=(LectureFigure("toy_line", "toy: a straight line", _toy_line),),
+              figure_data=lambda: {"slope": 2.0},
+              mistakes={"toy_correct": "the correct toy", "toy_wrong": "the toy with a bias"}, mistake_row=_toy_row)
+
+
+@pytest.fixture
+def with_toy(monkeypatch):
+    monkeypatch.setattr(problems, "PROBLEMS", (*problems.PROBLEMS, TOY))
+
+
+def test_the_toy_appears_in_help_and_runs(with_toy, capsys):
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert "toy" in out and "calibrate" in out and "coop" in out and "figures" in out
+    assert main(["toy", "--gain", "2.5"]) == 0
+    assert capsys.readouterr().out == "toy ran with gain 2.5\n"
+    assert main(["toy", "--gain", "-1"]) == 2
+    assert capsys.readouterr().err == "python -m kfcal_helpers toy: error: --gain must be > 0\n"
+
+
+def test_without_the_toy_there_is_no_toy_command(capsys):
+    assert main(["toy"]) == 2
+    assert "invalid choice: 'toy'" in capsys.readouterr().err
+
+
+def test_the_toy_figure_is_listed_and_written(with_toy, tmp_path, capsys):
+    assert main(["figures", "--list"]) == 0
+    listed = [line.split()[0] for line in capsys.readouterr().out.splitlines()]
+    assert listed[-1] == "toy_line" and listed == [f.name for f in all_figures()]
+    assert any(n.startswith("calib_") for n in listed) and any(n.startswith("coop_") for n in listed)
+    assert main(["figures", str(tmp_path), "--only", "toy_line"]) == 0
+    png = tmp_path / "toy_line.png"
+    assert capsys.readouterr().out == f"{png}\n"
+    assert struct.unpack(">II", png.read_bytes()[16:24]) == (1280, 720)
+    assert write_figures(tmp_path / "again", names=["toy_line"], data={"slope": -1.0}) == [tmp_path / "again" / "toy_line.png"]
+
+
+def test_the_toy_mistakes_are_rows_of_the_table(with_toy):
+    assert all_mistakes()[-2:] == ("toy_correct", "toy_wrong")
+    rows = mistake_table(["toy_correct", "toy_wrong"], n_runs={"toy": 7})
+    assert rows["toy_correct"].passed and rows["toy_wrong"].failed == ("bias",)
+    assert rows["toy_wrong"].result == {"n_runs": 7, "alpha": 0.05}
+    text = format_mistake_table(rows)
+    assert text.splitlines()[0].split() == ["mistake", "bias"]
+    assert "FAIL 1.5" in text and "pass 0" in text
+    assert format_checks(rows["toy_wrong"].checks).splitlines()[-1].split() == ["bias", "0.000", "1.50", "FAIL"]
+
+
+def test_names_must_be_unique_over_problems(monkeypatch):
+    twin = Problem(name="twin", title="a twin", add_cli=lambda sub: None, figures=TOY.figures,
+                   mistakes=TOY.mistakes, mistake_row=_toy_row)
+    monkeypatch.setattr(problems, "PROBLEMS", (TOY, twin))
+    with pytest.raises(ValueError, match="figure name 'toy_line' is used by two problems"):
+        all_figures()
+    with pytest.raises(ValueError, match="mistake name 'toy_correct' is used by two problems"):
+        all_mistakes()
+
+
+@pytest.mark.parametrize("kwargs, word", [({"mistakes": ["nope"]}, "mistakes"), ({"n_runs": 5}, "n_runs"),
+                                          ({"params": {"nope": 1}}, "params key"), ({"alpha": 1.5}, "alpha")])
+def test_mistake_table_validates(kwargs, word):
+    with pytest.raises(ValueError, match=word):
+        mistake_table(**kwargs)
+
+
+def test_problem_lookup():
+    assert problems.problem("coop") is problems.COOP
+    with pytest.raises(ValueError, match="problem must be one of calibration, coop"):
+        problems.problem("nope")
+
+
+# ---------------------------------------------------------------------------
+# Imports point one way
+PACKAGE = Path(kfcal_helpers.__file__).parent
+PROBLEM_PACKAGES = tuple(p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists() and p.name != "exercises")
+
+
+def _imports(path: Path):
+    """(module path of each import, names imported) of a source file, relative imports resolved."""
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    package = parts if path.name == "__init__.py" else parts[:-1]
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            base = package[: len(package) - node.level + 1] if node.level else []
+            module = [*base, *(node.module.split(".") if node.module else [])]
+            names = [a.name for a in node.names]
+            yield ".".join(module), names
+            for name in names:  # "from . import calibration" imports a package too
+                yield ".".join([*module, name]), []
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                yield a.name, []
+
+
+def test_problem_packages_are_the_expected_ones():
+    assert set(PROBLEM_PACKAGES) == {"calibration", "coop"}
+
+
+@pytest.mark.parametrize("path", sorted(PACKAGE.rglob("*.py")), ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_imports_point_one_way(path):
+    rel = path.relative_to(PACKAGE)
+    mine = rel.parts[0] if len(rel.parts) > 1 and rel.parts[0] in PROBLEM_PACKAGES else None
+    for module, names in _imports(path):
+        if not module.startswith("kfcal_helpers"):
+            continue
+        target = module.split(".")
+        other = target[1] if len(target) > 1 and target[1] in PROBLEM_PACKAGES else None
+        if mine is not None:
+            assert other in (None, mine), f"{rel} imports another problem: {module}"
+        elif rel != Path("problems.py"):
+            assert other is None, f"shared module {rel} imports a problem package: {module}"
+        if module != ".".join(["kfcal_helpers", *rel.with_suffix("").parts]):
+            private = [n for n in names if n.startswith("_") and not n.startswith("__")]
+            assert not private, f"{rel} imports private names {private} from {module}"
