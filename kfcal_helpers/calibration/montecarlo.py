@@ -337,7 +337,7 @@ class _Sums:
         self.x += s[:, 6:9]
         self.m += z @ z.transpose(0, 2, 1)
         r = y_present.reshape(n, -1)
-        self.rr += r.T @ r
+        self.rr += np.einsum("na,nb->ab", r, r)  # numpy's own loop: a threaded BLAS call here spins idle threads
 
     def combine(self, other: "_Sums"):
         self.n += other.n
