@@ -158,18 +158,21 @@ def filter_estimates(params: CalibrationParams, dz: np.ndarray, K: np.ndarray, m
     n, n_gps = dz.shape[0], params.n_gps
     HT = m.H.T
     Phi_rT = between_fixes(params, m)[0][-1].T
-    x_prior = np.empty((n, n_gps, 3))
-    x_post = np.empty((n, n_gps, 3))
-    y = np.full((n, n_gps, 2), np.nan)
+    # fix-major arrays, so that every step reads and writes contiguous (n, 3) slices
+    x_prior = np.empty((n_gps, n, 3))
+    x_post = np.empty((n_gps, n, 3))
+    y = np.full((n_gps, n, 2), np.nan)
+    dz_t = np.ascontiguousarray(dz.transpose(1, 0, 2))
+    KT = np.ascontiguousarray(K.transpose(0, 2, 1))
     xi = np.broadcast_to(m.x0, (n, 3)).copy()
     for i in range(n_gps):
-        x_prior[:, i] = xi
+        x_prior[i] = xi
         if not missing[i]:
-            y[:, i] = dz[:, i] - xi @ HT
-            xi = xi + y[:, i] @ K[i].T
-        x_post[:, i] = xi
+            np.subtract(dz_t[i], xi @ HT, out=y[i])
+            xi = xi + y[i] @ KT[i]
+        x_post[i] = xi
         xi = xi @ Phi_rT
-    return x_prior, x_post, y
+    return x_prior.transpose(1, 0, 2), x_post.transpose(1, 0, 2), y.transpose(1, 0, 2)
 
 
 def estimate_between_fixes(params: CalibrationParams, x_post, model: ErrorStateModel | None = None) -> np.ndarray:
