@@ -35,15 +35,34 @@ def test_gps_rate_must_divide_imu_rate():
 
 def test_runs_and_choices_rejected():
     with pytest.raises(ValueError, match="n_runs"):
-        run_monte_carlo(n_runs=1)
-    with pytest.raises(ValueError, match="engine"):
-        run_monte_carlo(n_runs=2, engine="fast")
+        run_monte_carlo(P0, 1)
+    with pytest.raises(ValueError, match="filter"):
+        run_monte_carlo(P0, 2, filter="fast")
     with pytest.raises(ValueError, match="truth"):
         simulate(P0, 2, np.random.default_rng(0), truth="exact")
-    with pytest.raises(ValueError, match="alpha"):
-        run_monte_carlo(n_runs=2, alpha=1.5)
-    with pytest.raises(ValueError, match="rng"):
-        simulate(P0, 2, 0)
+    for alpha in (1.5, 0.0, 1.0, float("nan"), "0.05", True):
+        with pytest.raises(ValueError, match="alpha must be a number in"):
+            run_monte_carlo(P0, 2, alpha=alpha)
+    for seed in ("x", -1, 1.5, None):
+        with pytest.raises(ValueError, match="seed must be an integer .* or a numpy.random.Generator"):
+            simulate(P0, 2, seed)
+    with pytest.raises(ValueError, match="workers"):
+        run_monte_carlo(P0, 2, workers=0)
+    with pytest.raises(ValueError, match="params must be a CalibrationParams, got NoneType"):
+        run_monte_carlo(None, 2)
+    with pytest.raises(ValueError, match="missing_fixes must be None or a bool array of shape"):
+        run_monte_carlo(P0, 2, missing_fixes=np.zeros(P0.n_gps))
+    with pytest.raises(TypeError):  # everything after the seed is keyword-only
+        run_monte_carlo(P0, 2, 0, "batch")
+
+
+def test_simulate_takes_a_seed_or_a_generator():
+    a = simulate(P0, 2, 7)
+    b = simulate(P0, 2, np.random.default_rng(7))
+    np.testing.assert_array_equal(a.z, b.z)
+    rng = np.random.default_rng(7)
+    simulate(P0, 2, rng)
+    assert not np.array_equal(simulate(P0, 2, rng).z, a.z)  # a Generator is advanced
 
 
 def test_measurement_shapes_rejected():
@@ -87,9 +106,9 @@ def test_cli_json(tmp_path):
     r = run_cli("--runs", "50", "--seed", "3", "--json", "--figures", str(tmp_path))
     assert r.returncode == 0, r.stderr
     d = json.loads(r.stdout)
-    for key in ("runs", "engine", "seconds", "sigma_final", "ensemble_sigma_final", "checks"):
+    for key in ("runs", "filter", "seconds", "sigma_final", "ensemble_sigma_final", "checks"):
         assert key in d
-    assert d["runs"] == 50 and d["engine"] == "batch" and len(d["sigma_final"]) == 3
+    assert d["runs"] == 50 and d["filter"] == "batch" and len(d["sigma_final"]) == 3
     for name in ("mean_error", "covariance", "orthogonality", "residual_independence", "nees", "nis"):
         assert 0.0 <= d["checks"][name]["inside_fraction"] <= 1.0
     assert len(d["checks"]["nees"]["bounds"]) == 2 and len(d["checks"]["nis"]["bounds"]) == 2
@@ -100,7 +119,7 @@ def test_cli_json(tmp_path):
 def test_cli_table_in_process(capsys):
     assert main(["calibrate", "--runs", "20", "--engine", "filterpy"]) == 0
     out = capsys.readouterr().out
-    assert "nees" in out and "engine filterpy" in out
+    assert "nees" in out and "filter filterpy" in out
 
 
 def test_filterpy_progress_moves_every_realization(monkeypatch):
@@ -123,12 +142,21 @@ def test_filterpy_progress_moves_every_realization(monkeypatch):
             calls.append(("close", 0, time.perf_counter()))
 
     monkeypatch.setattr(montecarlo, "_progress_bar", Recorder)
-    run_monte_carlo(n_runs=12, seed=0, engine="filterpy", progress=True)
+    run_monte_carlo(P0, 12, seed=0, filter="filterpy", progress=True)
     kinds = [c[0] for c in calls]
     assert kinds == ["total"] + ["update"] * 12 + ["close"] and calls[0][1] == 12
     assert all(c[1] == 1 for c in calls[1:-1])
     gaps = np.diff([c[2] for c in calls[:-1]])
     assert gaps.max() < 1.0, gaps.max()
     calls.clear()
-    run_monte_carlo(n_runs=1200, seed=0, engine="batch", progress=True)  # batch: by chunk, in total n_runs
+    run_monte_carlo(P0, 1200, seed=0, filter="batch", progress=True)  # batch: by chunk, in total n_runs
     assert sum(c[1] for c in calls if c[0] == "update") == 1200
+    calls.clear()
+    # on two threads (two chunks of 6 filterpy realizations) the bar, moved from the calling thread,
+    # still moves within every second and counts every realization
+    monkeypatch.setattr(montecarlo, "CHUNK_SIZE", 6)
+    run_monte_carlo(P0, 12, seed=0, filter="filterpy", progress=True, workers=2)
+    assert [c[0] for c in calls][0] == "total" and calls[-1][0] == "close"
+    assert sum(c[1] for c in calls if c[0] == "update") == 12
+    gaps = np.diff([c[2] for c in calls[:-1]])
+    assert gaps.max() < 1.0, gaps.max()

@@ -57,7 +57,7 @@ def test_cli_outage_runs(capsys):
     d = json.loads(capsys.readouterr().out)
     assert d["runs"] == 20
     # the final sigma with outages is larger than without (fewer fixes)
-    assert d["sigma_final"][2] > run_monte_carlo(n_runs=2, seed=0).sigma_final[2]
+    assert d["sigma_final"][2] > run_monte_carlo(PARAMS, 2, seed=0).sigma_final[2]
 
 
 def test_filter_coasts_through_gap():
@@ -74,7 +74,7 @@ def test_filter_coasts_through_gap():
         assert fr.P[j1, k, k] < fr.P[j1 - 1, k, k]  # and drop at the first fix back
     # the bias variance is frozen inside the gap (no process noise, no update)
     np.testing.assert_allclose(fr.P[j0:j1, 2, 2], fr.P[j0, 2, 2], rtol=1e-12)
-    assert np.isnan(fr.residual[missing]).all()
+    assert np.isnan(fr.y[missing]).all()
     assert np.all(fr.K[missing] == 0)
 
 

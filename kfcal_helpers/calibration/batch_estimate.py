@@ -28,7 +28,7 @@ import scipy.linalg
 
 from ..validation import require_int
 from .error_model import ErrorStateModel
-from .filters import _matrix_powers, _model
+from .engine import accumulated_noise, between_fixes, filter_model, matrix_powers
 from .params import CalibrationParams
 
 __all__ = ["prior_covariances_at_fixes", "batch_conditioning_covariance", "batch_conditioning", "rts_smooth_fixes"]
@@ -41,10 +41,9 @@ def prior_covariances_at_fixes(params: CalibrationParams, model: ErrorStateModel
     closed-form powers of Phi, no filter recursion).  Returns (n_gps, 3, 3) in
     m^2, (m/s)^2, (m/s^2)^2 and their products.
     """
-    m = _model(params, model)
-    powers = _matrix_powers(m.Phi, params.n_imu)  # (n_imu, 3, 3), Phi^j
-    noise = np.einsum("jab,bc,jdc->jad", powers, m.Q, powers)
-    cum = np.concatenate([np.zeros((1, 3, 3)), np.cumsum(noise, axis=0)])  # cum[k] = sum_{j<k}
+    m = filter_model(params, model)
+    powers = matrix_powers(m.Phi, params.n_imu)  # (n_imu, 3, 3), Phi^j
+    cum = accumulated_noise(powers, m.Q)  # cum[k] = sum_{j<k} Phi^j Q Phi^jT
     k = params.fix_indices
     Pk = powers[k]
     return np.einsum("kab,bc,kdc->kad", Pk, m.M0, Pk) + cum[k]
@@ -90,7 +89,7 @@ def batch_conditioning(params: CalibrationParams, i: int, dz=None, model: ErrorS
         equal to the Kalman filter's a posteriori estimate at fix ``i``
     P : (3, 3) ``Sigma_xx - Sigma_xz Sigma_zz^{-1} Sigma_zx``, the filter's a posteriori P
     """
-    m = _model(params, model)
+    m = filter_model(params, model)
     i = require_int("i", i, minimum=0)
     if i >= params.n_gps:
         raise ValueError(f"i must be below n_gps = {params.n_gps}, got {i}")
@@ -101,7 +100,7 @@ def batch_conditioning(params: CalibrationParams, i: int, dz=None, model: ErrorS
     n = i + 1
     lag = np.arange(n)[:, None] - np.arange(n)[None, :]  # n - m
     # C[a, b] = Cov(x(t_a), x(t_b)) = Phi^{(a-b) r} Pi_b for a >= b
-    F = _matrix_powers(np.linalg.matrix_power(m.Phi, r), int(np.abs(lag).max()) + 1)  # (Phi^r)^k
+    F = matrix_powers(between_fixes(params, m)[0][r], int(np.abs(lag).max()) + 1)  # (Phi^r)^k
     C = F[np.abs(lag)] @ Pi[:n][None, :, :, :]
     lower = lag >= 0
     C = np.where(lower[:, :, None, None], C, np.swapaxes(C, 0, 1).swapaxes(2, 3))
@@ -143,13 +142,13 @@ def rts_smooth_fixes(params: CalibrationParams, x_prior, x_post, P_prior, P_post
     xs : same shape as ``x_post``, smoothed estimates at the fixes
     Ps : (n_gps, 3, 3) smoothed covariances (the last equals ``P_post[-1]``)
     """
-    m = _model(params, model)
+    m = filter_model(params, model)
     x_post = np.asarray(x_post, float)
     x_prior = np.asarray(x_prior, float)
     if x_post.shape != x_prior.shape or x_post.shape[-2:] != (params.n_gps, 3):
         raise ValueError(f"x_prior and x_post must have the same shape (..., {params.n_gps}, 3), "
                          f"got {x_prior.shape} and {x_post.shape}")
-    F = np.linalg.matrix_power(m.Phi, params.steps_per_fix)
+    F = between_fixes(params, m)[0][-1]  # Phi^steps_per_fix
     xs = x_post.copy()
     Ps = np.array(P_post, float, copy=True)
     for i in range(params.n_gps - 2, -1, -1):

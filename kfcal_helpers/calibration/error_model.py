@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..validation import require_instance
 from .params import CalibrationParams
 
 __all__ = ["ErrorStateModel", "error_state_model", "phi_power"]
@@ -38,8 +39,7 @@ class ErrorStateModel:
 
 def error_state_model(params: CalibrationParams) -> ErrorStateModel:
     """Build Phi, Gamma, H, Q, V, M0 and the prior mean for ``params``."""
-    if not isinstance(params, CalibrationParams):
-        raise ValueError(f"params must be a CalibrationParams, got {type(params).__name__}")
+    require_instance("params", params, CalibrationParams)
     dt = params.dt
     Phi = np.array([[1.0, dt, -dt**2 / 2], [0.0, 1.0, -dt], [0.0, 0.0, 1.0]])
     Gamma = np.array([-dt**2 / 2, -dt, 0.0])
@@ -56,8 +56,7 @@ def phi_power(params: CalibrationParams, k) -> np.ndarray:
 
     ``k`` int or int array (m,); returns (3, 3) or (m, 3, 3).
     """
-    if not isinstance(params, CalibrationParams):
-        raise ValueError(f"params must be a CalibrationParams, got {type(params).__name__}")
+    require_instance("params", params, CalibrationParams)
     k_in = np.asarray(k)
     if k_in.dtype == bool or not (np.issubdtype(k_in.dtype, np.integer) or np.issubdtype(k_in.dtype, np.floating)) \
             or not np.all(np.isfinite(k_in)) or np.any(k_in != np.round(k_in)):

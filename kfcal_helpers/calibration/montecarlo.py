@@ -1,8 +1,11 @@
 """Monte Carlo validation of the calibration filter (seven checks at the GPS fixes, and one between them).
 
-Realizations are simulated in chunks of at most :data:`CHUNK_SIZE` (the 200 Hz arrays of a
-chunk are dropped once the chunk is filtered), and only sums over realizations
-are kept, so memory does not grow with the number of runs.  The chunk size follows the
+Realizations are simulated in chunks of at most :data:`CHUNK_SIZE` (a chunk's draws are
+dropped once the chunk is filtered), and only sums over realizations are kept, so memory does not
+grow with the number of runs.  The chunks run on a small thread pool (``workers``, default
+``min(2, os.cpu_count())``); chunk ``c`` draws from its own random stream
+(``numpy.random.SeedSequence(seed).spawn``, PCG64DXSM, :func:`chunk_generators`) and the partial sums are
+added in chunk order, so the result is the same, bit for bit, for any number of workers.  The chunk size follows the
 size of one realization (:func:`chunk_size`, a function of the parameters only, so results
 do not depend on the machine) and keeps the estimated peak memory of the process under
 :data:`MEMORY_LIMIT`; a run that cannot fit even one realization at a time, or whose
@@ -46,7 +49,13 @@ consistent filter fails somewhere with probability at most ``2 alpha``).
 
 from __future__ import annotations
 
+import itertools
+import os
+import threading
 import time
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,29 +63,38 @@ from scipy import stats
 
 from ..consistency import Check, chi2_bounds
 from ..progress import progress_bar as _progress_bar
-from ..validation import require_choice, require_finite, require_int, require_seed
+from ..validation import require_choice, require_instance, require_int, require_mask, require_probability, require_seed
+from .engine import covariance_sequence, estimate_between_fixes, filter_estimates, filter_model
 from .error_model import ErrorStateModel
-from .filters import batch_filter, between_fixes as _between_fix_steps, covariance_sequence, run_filterpy
+from .filters import run_filterpy
 from .params import CalibrationParams
-from .simulation import TRUTH_MODELS, simulate
+from .simulation import TRUTH_MODELS, draw_realizations, error_state_at_fixes, error_state_full
 
-__all__ = ["CHUNK_SIZE", "MEMORY_LIMIT", "MAX_SECONDS", "chunk_size", "estimate_run", "ENGINES", "CHECK_NAMES",
-           "Check", "MonteCarloResult", "BetweenFixes", "run_monte_carlo", "format_checks"]
+__all__ = ["CHUNK_SIZE", "MEMORY_LIMIT", "MAX_SECONDS", "chunk_size", "chunk_sizes", "chunk_generators",
+           "chunks_in_flight", "default_workers", "estimate_run", "FILTERS", "CHECK_NAMES", "Check",
+           "MonteCarloResult", "BetweenFixes", "run_monte_carlo"]
 
 CHUNK_SIZE = 500  #: most realizations simulated together (see chunk_size)
 MEMORY_LIMIT = 500e6  #: bytes, the estimated peak memory (resident) a run may need
 MAX_SECONDS = 3600.0  #: s, the longest estimated run accepted
 # Cost model, measured (tracemalloc, ru_maxrss, wall time) on the 2-core reference machine and
-# rounded up: the interpreter with numpy and scipy; bytes per GPS fix squared (the pairwise
-# residual statistics) and per IMU sample (the covariance sequence); bytes per IMU sample and
-# per fix of one realization in a chunk; seconds per IMU sample of one realization.
+# rounded up (tests/test_calibration_montecarlo.py checks it against tracemalloc):
+# * the interpreter with numpy and scipy, and per IMU sample what the whole run keeps (the filter's P);
+# * at the end, per GPS fix squared, the statistics of the checks (the pairwise residual statistics);
+# * while chunks run: the sums (per fix squared, and per sample with between_fixes), and per chunk in
+#   flight its realizations (per IMU sample and per fix of one realization; with between_fixes the
+#   200 Hz error state, its estimate and their products) and its partial sums;
+# * seconds per IMU sample of one realization on one thread, and per fix squared.
 _BASE_BYTES = 130e6
-_FIXED_BYTES_PER_FIX2, _FIXED_BYTES_PER_SAMPLE = 340.0, 120.0
-_BYTES_PER_SAMPLE, _BYTES_PER_FIX = 64.0, 256.0
-_BETWEEN_BYTES_PER_SAMPLE = 48.0
+_FIXED_BYTES_PER_SAMPLE = 100.0
+_STATS_BYTES_PER_FIX2 = 340.0
+_SUMS_BYTES_PER_FIX2, _SUMS_BYTES_PER_SAMPLE = 40.0, 200.0
+_BYTES_PER_SAMPLE, _BYTES_PER_FIX = 16.0, 400.0
+_BETWEEN_BYTES_PER_SAMPLE = 80.0
+_PARTIAL_BYTES_PER_FIX2, _PARTIAL_BYTES_PER_SAMPLE = 72.0, 100.0
 _SECONDS_PER_SAMPLE = {"batch": 1.5e-7, "filterpy": 6e-6}
 _SECONDS_PER_FIX2 = 3e-6
-ENGINES = ("batch", "filterpy")
+FILTERS = ("batch", "filterpy")  #: the filter codes run_monte_carlo can run
 CHECK_NAMES = ("mean_error", "covariance", "orthogonality", "residual_independence",
                "residual_variance", "nees", "nis")
 
@@ -88,14 +106,16 @@ class MonteCarloResult:
     t_gps (n_gps,) s; P_prior, P_post (n_gps, 3, 3) and S (n_gps, 2, 2) from the filter;
     e_mean, e_prior_mean (n_gps, 3); e_cov, e_prior_cov (n_gps, 3, 3) ensemble
     statistics of the a posteriori / a priori errors; orthogonality (n_gps, 3, 3);
-    xhat_sq_mean (n_gps, 3); residual_moment (n_gps, 2, n_gps, 2) = (1/N) sum r r^T;
-    nees (n_gps,), nis (n_gps,) run averages (NaN at missing fixes for NIS);
-    seconds: wall time of simulation + filtering + statistics.
+    xhat_sq_mean (n_gps, 3); residual_moment (n_gps, 2, n_gps, 2) = (1/N) sum r r^T (NaN at missing
+    fixes); nees (n_gps,), nis (n_gps,) run averages (NaN at missing fixes for NIS);
+    filter: "batch" or "filterpy"; seconds: wall time of simulation + filtering + statistics.
+    The interface shared with the coop problem: ``n_runs``, ``alpha``, ``checks()``
+    (printed by ``kfcal_helpers.consistency.format_checks``).
     """
 
     params: CalibrationParams
     n_runs: int
-    engine: str
+    filter: str
     truth: str
     alpha: float
     seconds: float
@@ -252,36 +272,6 @@ class BetweenFixes:
 _BETWEEN_DESCRIPTION = "ensemble variance of the 200 Hz error between fixes vs the filter's P"
 
 
-class _BetweenSums:
-    """Running sums of the 200 Hz error over realizations: O(n_imu) memory, whatever N."""
-
-    def __init__(self, params: CalibrationParams):
-        self.params = params
-        self.n = 0
-        self.e = np.zeros((params.n_imu, 3))
-        self.ee = np.zeros((params.n_imu, 3, 3))
-
-    def add(self, dx_full, x_full):
-        e = dx_full - x_full
-        self.n += len(e)
-        self.e += e.sum(0)
-        self.ee += np.einsum("nja,njb->jab", e, e)
-
-    def result(self, P: np.ndarray) -> BetweenFixes:
-        N = self.n
-        mean = self.e / N
-        cov = (self.ee - N * np.einsum("ja,jb->jab", mean, mean)) / (N - 1)
-        return BetweenFixes(self.params.t_imu, P, mean, cov)
-
-
-def _predicted_between(params: CalibrationParams, x_post: np.ndarray, model) -> np.ndarray:
-    """The batch estimate at every sample, ``Phi^k x_post(t_i)`` (n, n_imu, 3)."""
-    powers, _ = _between_fix_steps(params, model)
-    r = params.steps_per_fix
-    n = x_post.shape[0]
-    return np.einsum("kab,nib->nika", powers[:r], x_post).reshape(n, -1, 3)[:, : params.n_imu]
-
-
 _DESCRIPTIONS = {
     "mean_error": "ensemble mean of the error vs 0 (+-t s/sqrt(N))",
     "covariance": "ensemble covariance of the error vs the filter's P",
@@ -293,102 +283,241 @@ _DESCRIPTIONS = {
 }
 
 
-class _Sums:
-    """Running sums over realizations (everything at the GPS fixes)."""
 
-    def __init__(self, n_gps: int):
+class _BetweenSums:
+    """Sums of the 200 Hz error over realizations: O(n_imu) memory, whatever N."""
+
+    def __init__(self, n_imu: int):
+        self.n = 0
+        self.e = np.zeros((n_imu, 3))
+        self.ee = np.zeros((n_imu, 3, 3))
+
+    def add(self, dx_full, x_full):
+        e = dx_full
+        e -= x_full  # in place: dx_full is not used again
+        self.n += len(e)
+        self.e += e.sum(0)
+        et = np.ascontiguousarray(e.transpose(1, 2, 0))  # (n_imu, 3, n)
+        self.ee += et @ et.transpose(0, 2, 1)
+
+    def combine(self, other: "_BetweenSums"):
+        self.n += other.n
+        self.e += other.e
+        self.ee += other.ee
+
+    def result(self, params: CalibrationParams, P: np.ndarray) -> BetweenFixes:
+        N = self.n
+        mean = self.e / N
+        cov = (self.ee - N * np.einsum("ja,jb->jab", mean, mean)) / (N - 1)
+        return BetweenFixes(params.t_imu, P, mean, cov)
+
+
+class _Sums:
+    """Sums over realizations of everything the checks need at the GPS fixes (present fixes only for
+    the residuals): uncentred moments, combined chunk by chunk in chunk order."""
+
+    def __init__(self, n_gps: int, n_present: int):
         self.n = 0
         self.e = np.zeros((n_gps, 3))
-        self.ee = np.zeros((n_gps, 3, 3))
         self.eb = np.zeros((n_gps, 3))
-        self.ebeb = np.zeros((n_gps, 3, 3))
-        self.ex = np.zeros((n_gps, 3, 3))
         self.x = np.zeros((n_gps, 3))
-        self.xx = np.zeros((n_gps, 3))
-        self.rr = np.zeros((2 * n_gps, 2 * n_gps))
-        self.nees = np.zeros(n_gps)
-        self.nis = np.zeros(n_gps)
+        self.m = np.zeros((n_gps, 9, 9))  # second moments of [e, e_bar, x_post]
+        self.rr = np.zeros((2 * n_present, 2 * n_present))
 
-    def add(self, dx, x_prior, x_post, residual, P_post_inv, S_inv):
-        e = dx - x_post
-        eb = dx - x_prior
-        self.n += len(dx)
-        self.e += e.sum(0)
-        self.ee += np.einsum("nia,nib->iab", e, e)
-        self.eb += eb.sum(0)
-        self.ebeb += np.einsum("nia,nib->iab", eb, eb)
-        self.ex += np.einsum("nia,nib->iab", e, x_post)
-        self.x += x_post.sum(0)
-        self.xx += (x_post**2).sum(0)
-        r = residual.reshape(len(dx), -1)
-        self.rr += r.T @ r  # NaN only in the rows/columns of missing fixes
-        self.nees += np.einsum("nia,iab,nib->i", e, P_post_inv, e)
-        self.nis += np.einsum("nia,iab,nib->i", residual, S_inv, residual)
+    def add(self, dx, x_prior, x_post, y_present):
+        n = len(dx)
+        z = np.empty((dx.shape[1], 9, n))  # fix-major [e, e_bar, x_post] of the chunk
+        np.subtract(dx.transpose(1, 2, 0), x_post.transpose(1, 2, 0), out=z[:, 0:3])
+        np.subtract(dx.transpose(1, 2, 0), x_prior.transpose(1, 2, 0), out=z[:, 3:6])
+        z[:, 6:9] = x_post.transpose(1, 2, 0)
+        s = z.sum(axis=2)
+        self.n += n
+        self.e += s[:, 0:3]
+        self.eb += s[:, 3:6]
+        self.x += s[:, 6:9]
+        self.m += z @ z.transpose(0, 2, 1)
+        r = y_present.reshape(n, -1)
+        self.rr += np.einsum("na,nb->ab", r, r)  # numpy's own loop: a threaded BLAS call here spins idle threads
+
+    def combine(self, other: "_Sums"):
+        self.n += other.n
+        for name in ("e", "eb", "x", "m", "rr"):
+            getattr(self, name).__iadd__(getattr(other, name))
 
 
+# Memory and time --------------------------------------------------------------------------------
 def _fixed_bytes(params: CalibrationParams) -> float:
-    return _BASE_BYTES + _FIXED_BYTES_PER_FIX2 * params.n_gps**2 + _FIXED_BYTES_PER_SAMPLE * params.n_imu
+    """Bytes the whole run keeps: the interpreter and the filter's covariances."""
+    return _BASE_BYTES + _FIXED_BYTES_PER_SAMPLE * params.n_imu
+
+
+def _sums_bytes(params: CalibrationParams, between_fixes: bool) -> float:
+    return _SUMS_BYTES_PER_FIX2 * params.n_gps**2 + (_SUMS_BYTES_PER_SAMPLE * params.n_imu if between_fixes else 0.0)
 
 
 def _realization_bytes(params: CalibrationParams, between_fixes: bool = False) -> float:
-    # between_fixes keeps the true and the estimated 200 Hz error state of the chunk (2 x 3 floats)
+    """Bytes one realization of a chunk in flight needs (its draws, its filter, its statistics)."""
     per_sample = _BYTES_PER_SAMPLE + (_BETWEEN_BYTES_PER_SAMPLE if between_fixes else 0.0)
     return per_sample * params.n_imu + _BYTES_PER_FIX * params.n_gps
 
 
+def _partial_bytes(params: CalibrationParams, between_fixes: bool = False) -> float:
+    """Bytes of one chunk's partial sums, alive until they are added in chunk order."""
+    return _PARTIAL_BYTES_PER_FIX2 * params.n_gps**2 + (_PARTIAL_BYTES_PER_SAMPLE * params.n_imu
+                                                          if between_fixes else 0.0)
+
+
+def default_workers() -> int:
+    """Threads the Monte Carlo uses by default: ``min(2, os.cpu_count())``."""
+    return max(1, min(2, os.cpu_count() or 1))
+
+
 def chunk_size(params: CalibrationParams) -> int:
     """Realizations simulated together for ``params``: :data:`CHUNK_SIZE`, or fewer when the
-    realizations are long, so that the estimated peak stays under :data:`MEMORY_LIMIT` even with
-    ``between_fixes`` (at least 1; :func:`estimate_run` refuses runs where even 1 does not fit).  It does
-    not depend on ``between_fixes``, so the random draws, and the seven checks, are the same with and
-    without it."""
-    room = MEMORY_LIMIT - _fixed_bytes(params)
+    realizations are long, so that the estimated peak with one chunk in flight stays under
+    :data:`MEMORY_LIMIT` even with ``between_fixes`` (at least 1; :func:`estimate_run` refuses runs
+    where even 1 does not fit).  It depends on neither ``between_fixes`` nor ``workers``, so the random
+    draws, and the seven checks, are the same with and without them."""
+    room = MEMORY_LIMIT - _fixed_bytes(params) - _sums_bytes(params, True) - _partial_bytes(params, True)
     return int(max(1, min(CHUNK_SIZE, room // _realization_bytes(params, between_fixes=True))))
 
 
-def estimate_run(params: CalibrationParams, n_runs: int, engine: str = "batch",
+def chunk_sizes(params: CalibrationParams, n_runs: int) -> list[int]:
+    """The sizes of the chunks of a run of ``n_runs`` realizations, in order."""
+    chunk = chunk_size(params)
+    return [chunk] * (n_runs // chunk) + ([n_runs % chunk] if n_runs % chunk else [])
+
+
+def chunk_generators(params: CalibrationParams, n_runs: int, seed) -> list[tuple[int, np.random.Generator]]:
+    """``(size, generator)`` of every chunk: chunk ``c`` draws its realizations (with
+    ``simulation.draw_realizations``, the draws of ``simulate``) from its own stream,
+    ``numpy.random.Generator(numpy.random.PCG64DXSM(numpy.random.SeedSequence(seed).spawn(n_chunks)[c]))``
+    (PCG64DXSM, numpy's recommended successor of ``default_rng``'s PCG64, draws normals about 30 % faster
+    here); for a Generator ``seed``, from ``seed.spawn(n_chunks)``.  So a chunk's numbers do not depend
+    on which thread runs it."""
+    sizes = chunk_sizes(params, n_runs)
+    if isinstance(seed, np.random.Generator):
+        gens = seed.spawn(len(sizes))
+    else:
+        gens = [np.random.Generator(np.random.PCG64DXSM(s)) for s in np.random.SeedSequence(seed).spawn(len(sizes))]
+    return list(zip(sizes, gens))
+
+
+def _chunk_bytes(params: CalibrationParams, n_runs: int, between_fixes: bool) -> float:
+    """Bytes of one chunk in flight: its realizations and its partial sums."""
+    return (min(n_runs, chunk_size(params)) * _realization_bytes(params, between_fixes)
+            + _partial_bytes(params, between_fixes))
+
+
+def chunks_in_flight(params: CalibrationParams, n_runs: int, workers: int | None = None,
+                     between_fixes: bool = False) -> int:
+    """How many chunks run at once: ``workers`` (default :func:`default_workers`), but no more than
+    there are chunks, nor than fit in :data:`MEMORY_LIMIT` (at least 1)."""
+    workers = default_workers() if workers is None else workers
+    room = MEMORY_LIMIT - _fixed_bytes(params) - _sums_bytes(params, between_fixes)
+    fit = int(room // _chunk_bytes(params, n_runs, between_fixes))
+    return max(1, min(workers, len(chunk_sizes(params, n_runs)), fit))
+
+
+def estimate_run(params: CalibrationParams, n_runs: int, filter: str = "batch",
                  runs_name: str = "n_runs", params_name: str = "params",
-                 extra_bytes: float = 0.0, between_fixes: bool = False) -> tuple[float, float]:
-    """Estimated ``(peak bytes, seconds)`` of :func:`run_monte_carlo`; ValueError, with the
-    estimate, when the peak exceeds :data:`MEMORY_LIMIT` (the scenario has too many IMU samples
-    or GPS fixes) or the time exceeds :data:`MAX_SECONDS` (``runs_name`` and ``params_name`` name
-    the arguments in the message).  ``extra_bytes``: what the caller needs after the Monte Carlo,
-    while its result is alive (the command line's figures)."""
-    per_run = _realization_bytes(params, between_fixes)
-    peak = _fixed_bytes(params) + max(min(n_runs, chunk_size(params)) * per_run, extra_bytes)
+                 extra_bytes: float = 0.0, between_fixes: bool = False,
+                 workers: int | None = None) -> tuple[float, float]:
+    """Estimated ``(peak bytes, seconds)`` of :func:`run_monte_carlo`, with every chunk in flight
+    (:func:`chunks_in_flight`) counted; ValueError, with the estimate, when the peak exceeds
+    :data:`MEMORY_LIMIT` (the scenario has too many IMU samples or GPS fixes) or the time exceeds
+    :data:`MAX_SECONDS` (``runs_name`` and ``params_name`` name the arguments in the message).
+    ``extra_bytes``: what the caller needs after the Monte Carlo, while its result is alive (the
+    command line's figures).  The time is that of one thread (a conservative bound)."""
+    flying = chunks_in_flight(params, n_runs, workers, between_fixes)
+    running = _sums_bytes(params, between_fixes) + flying * _chunk_bytes(params, n_runs, between_fixes)
+    peak = _fixed_bytes(params) + max(running, _STATS_BYTES_PER_FIX2 * params.n_gps**2, extra_bytes)
     if peak > MEMORY_LIMIT:
         raise ValueError(
             f"{params_name}: one realization of {params.n_imu} IMU samples and {params.n_gps} GPS fixes needs about "
             f"{peak / 1e6:.0f} MB, more than the {MEMORY_LIMIT / 1e6:.0f} MB allowed; use a shorter duration "
             f"or lower rates (at most about 1000 GPS fixes and 2 million IMU samples)")
-    seconds = (_SECONDS_PER_SAMPLE[engine] * params.n_imu * float(n_runs)
+    seconds = (_SECONDS_PER_SAMPLE[filter] * params.n_imu * float(n_runs)
                + _SECONDS_PER_FIX2 * params.n_gps**2)
     if seconds > MAX_SECONDS:
-        raise ValueError(f"{runs_name}: {n_runs} realizations with engine {engine!r} would take about "
+        raise ValueError(f"{runs_name}: {n_runs} realizations with filter {filter!r} would take about "
                          f"{seconds / 3600:.3g} h, more than the {MAX_SECONDS / 3600:g} h allowed; use fewer")
     return peak, seconds
 
 
-def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000, seed=0,
-                    engine: str = "batch", truth: str = "euler", alpha: float = 0.05,
-                    missing_fixes=None, progress: bool | None = False,
-                    model: ErrorStateModel | None = None, between_fixes: bool = False) -> MonteCarloResult:
+# The run -----------------------------------------------------------------------------------------
+@dataclass
+class _Setup:
+    """What every chunk shares (read only)."""
+
+    params: CalibrationParams
+    truth: str
+    filter: str
+    model: ErrorStateModel
+    given_model: ErrorStateModel | None
+    missing: np.ndarray
+    K: np.ndarray
+    between: bool
+    cancel: threading.Event
+
+
+def _chunk(setup: _Setup, size: int, rng: np.random.Generator, on_realization=None):
+    """One chunk: draw, filter, and return its partial sums (and the 200 Hz ones with ``between``)."""
+    if setup.cancel.is_set():
+        return None
+    params, missing = setup.params, setup.missing
+    draws = draw_realizations(params, size, rng)
+    dx = error_state_at_fixes(params, draws, setup.truth)
+    dz = dx[..., :2] + draws.eta
+    dz[:, missing] = np.nan
+    runs = None
+    if setup.filter == "batch":
+        x_prior, x_post, y = filter_estimates(params, dz, setup.K, missing, setup.model)
+    else:
+        runs = []
+        for l in range(size):  # the bar moves with every realization (about 0.03 s each)
+            if setup.cancel.is_set():
+                return None
+            res = run_filterpy(params, dz[l], setup.given_model)
+            runs.append((res.x_prior, res.x_post, res.y, res.x if setup.between else None))
+            if on_realization is not None:
+                on_realization()
+        x_prior, x_post, y = (np.stack([run[k] for run in runs]) for k in range(3))
+    sums = _Sums(params.n_gps, int((~missing).sum()))
+    sums.add(dx, x_prior, x_post, y[:, ~missing])
+    bsums = None
+    if setup.between:
+        bsums = _BetweenSums(params.n_imu)
+        x_full = (estimate_between_fixes(params, x_post, setup.model) if runs is None
+                  else np.stack([run[3] for run in runs]))
+        bsums.add(error_state_full(params, draws, setup.truth), x_full)
+    return sums, bsums
+
+
+def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: str = "batch",
+                    truth: str = "euler", alpha: float = 0.05, missing_fixes=None, progress: bool | None = False,
+                    model: ErrorStateModel | None = None, between_fixes: bool = False,
+                    workers: int | None = None) -> MonteCarloResult:
     """Simulate ``n_runs`` realizations, filter them, and accumulate the check statistics.
 
     Parameters
     ----------
-    params : CalibrationParams (default: ``CalibrationParams()``)
+    params : CalibrationParams
     n_runs : int >= 2
-    seed : int or None, seed of ``numpy.random.default_rng``
-    engine : "batch" (vectorised, shared gains) or "filterpy" (one KalmanFilter per run)
+    seed : int (or None: fresh entropy) seeding ``numpy.random.SeedSequence``, or a numpy.random.Generator;
+        chunk ``c`` draws from its own stream (:func:`chunk_generators`)
+    filter : "batch" (vectorised, shared gains) or "filterpy" (one KalmanFilter per run)
     truth : "euler" or "analytic"
     alpha : significance of the bands, in (0, 1)
     missing_fixes : optional bool array (n_gps,), fixes that are missing (outages)
-    progress : show a progress bar over chunks (None: unless CI/KFCAL_QUIET is set)
+    progress : show a progress bar (None: unless CI/KFCAL_QUIET is set)
     model : optional ErrorStateModel the filter assumes (default: the true one); the
         truth is always simulated with ``params``
     between_fixes : also accumulate the error at every 200 Hz sample (``result.between``,
         checked by ``result.between_fixes_check()``); memory O(n_imu), independent of N
+    workers : threads running chunks at once (default ``min(2, os.cpu_count())``; fewer when the
+        chunks would not fit in :data:`MEMORY_LIMIT`).  The result is the same, bit for bit, for any
+        number: every chunk has its own random stream and the sums are added in chunk order.
 
     Returns
     -------
@@ -399,94 +528,116 @@ def run_monte_carlo(params: CalibrationParams | None = None, n_runs: int = 1000,
     ValueError naming the argument: bad values, missing fixes leaving fewer than 2 fixes,
     or a run refused by :func:`estimate_run` (too much memory or time).
     """
-    params = CalibrationParams() if params is None else params
-    if not isinstance(params, CalibrationParams):
-        raise ValueError(f"params must be a CalibrationParams, got {type(params).__name__}")
+    require_instance("params", params, CalibrationParams)
     n_runs = require_int("n_runs", n_runs, minimum=2)
-    require_choice("engine", engine, ENGINES)
+    require_choice("filter", filter, FILTERS)
     require_choice("truth", truth, TRUTH_MODELS)
-    alpha = require_finite("alpha", alpha)
-    if not 0 < alpha < 1:
-        raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
-    missing = np.zeros(params.n_gps, bool) if missing_fixes is None else np.asarray(missing_fixes)
-    if missing.shape != (params.n_gps,) or missing.dtype != bool:
-        raise ValueError(f"missing_fixes must be a bool array of shape ({params.n_gps},)")
+    alpha = require_probability("alpha", alpha)
+    missing = require_mask("missing_fixes", missing_fixes, params.n_gps)
+    missing = np.zeros(params.n_gps, bool) if missing is None else missing.copy()
     if (~missing).sum() < 2:
         raise ValueError(f"missing_fixes must leave at least 2 of the {params.n_gps} GPS fixes, "
                          f"got {int((~missing).sum())}")
-    seed = require_seed("seed", seed)
+    if not isinstance(seed, np.random.Generator):
+        seed = require_seed("seed", seed)
     if not isinstance(between_fixes, (bool, np.bool_)):
         raise ValueError(f"between_fixes must be True or False, got {between_fixes!r}")
     between_fixes = bool(between_fixes)
-    estimate_run(params, n_runs, engine, between_fixes=between_fixes)
+    workers = default_workers() if workers is None else require_int("workers", workers, minimum=1)
+    m = filter_model(params, model)
+    estimate_run(params, n_runs, filter, between_fixes=between_fixes, workers=workers)
 
     start = time.perf_counter()
-    rng = np.random.default_rng(seed)
-    cov = covariance_sequence(params, missing, model)
-    bsums = _BetweenSums(params) if between_fixes else None
+    cov = covariance_sequence(params, missing, m)
     P, P_prior, S, K = cov
-    P_post = P[params.fix_indices]
-    P_post_inv = np.linalg.inv(P_post)
-    S_inv = np.linalg.inv(S)
-    sums = _Sums(params.n_gps)
-    chunk = chunk_size(params)
-    sizes = [chunk] * (n_runs // chunk) + ([n_runs % chunk] if n_runs % chunk else [])
-    bar = _progress_bar(n_runs, f"Monte Carlo ({engine})", progress)
-    for size in sizes:
-        sim = simulate(params, size, rng, truth=truth, missing_fixes=missing if missing.any() else None)
-        dx, dz = sim.dx_at_fixes, sim.dz
-        dx_full = sim.dx if bsums is not None else None  # the true error state at every sample, (n, n_imu, 3)
-        del sim
-        if engine == "batch":
-            res = batch_filter(params, dz, full_rate=False, covariances=cov, model=model)
-            x_prior, x_post, residual = res.x_prior, res.x_post, res.residual
-        else:
-            runs = []
-            for l in range(size):  # the bar moves with every realization (about 0.1 s each)
-                runs.append(run_filterpy(params, dz[l], model))
-                bar.update(1)
-            x_prior = np.stack([r.x_prior for r in runs])
-            x_post = np.stack([r.x_post for r in runs])
-            residual = np.stack([r.residual for r in runs])
-        sums.add(dx, x_prior, x_post, residual, P_post_inv, S_inv)
+    setup = _Setup(params, truth, filter, m, model, missing, K, between_fixes, threading.Event())
+    chunks = chunk_generators(params, n_runs, seed)
+    sums = _Sums(params.n_gps, int((~missing).sum()))
+    bsums = _BetweenSums(params.n_imu) if between_fixes else None
+    bar = _progress_bar(n_runs, f"Monte Carlo ({filter})", progress)
+
+    def combine(part, size):
+        sums.combine(part[0])
         if bsums is not None:
-            x_full = (_predicted_between(params, x_post, model) if engine == "batch"
-                      else np.stack([run.x for run in runs]))
-            bsums.add(dx_full, x_full)
-            del dx_full, x_full
-        if engine == "batch":
+            bsums.combine(part[1])
+        if filter == "batch":
             bar.update(size)
-    bar.close()
+
+    flying = chunks_in_flight(params, n_runs, workers, between_fixes)
+    try:
+        if flying == 1:  # in this thread: the bar moves with every filterpy realization
+            for size, rng in chunks:
+                combine(_chunk(setup, size, rng, lambda: bar.update(1)), size)
+        else:
+            _run_on_threads(setup, chunks, flying, combine, bar)
+    finally:
+        setup.cancel.set()  # after an interruption, the other threads stop at their next realization or chunk
+        bar.close()
 
     N = sums.n
     e_mean = sums.e / N
-    e_cov = (sums.ee - N * np.einsum("ia,ib->iab", e_mean, e_mean)) / (N - 1)
+    e_cov = (sums.m[:, 0:3, 0:3] - N * np.einsum("ia,ib->iab", e_mean, e_mean)) / (N - 1)
     eb_mean = sums.eb / N
-    eb_cov = (sums.ebeb - N * np.einsum("ia,ib->iab", eb_mean, eb_mean)) / (N - 1)
-    orth = (sums.ex - np.einsum("ia,ib->iab", e_mean, sums.x)) / N
-    n_gps = params.n_gps
-    nis = sums.nis / N
-    nis[missing] = np.nan
+    eb_cov = (sums.m[:, 3:6, 3:6] - N * np.einsum("ia,ib->iab", eb_mean, eb_mean)) / (N - 1)
+    orth = (sums.m[:, 0:3, 6:9] - np.einsum("ia,ib->iab", e_mean, sums.x)) / N
+    xx = np.einsum("iaa->ia", sums.m[:, 6:9, 6:9])
+    P_post = P[params.fix_indices]
+    # run-averaged NEES and NIS from the summed outer products: sum_l e^T P^-1 e = trace(P^-1 sum_l e e^T)
+    nees = np.einsum("iab,iab->i", np.linalg.inv(P_post), sums.m[:, 0:3, 0:3]) / N
+    n_gps, ok = params.n_gps, ~missing
+    moment = np.full((n_gps, 2, n_gps, 2), np.nan)
+    idx = np.flatnonzero(ok)
+    moment[np.ix_(idx, [0, 1], idx, [0, 1])] = (sums.rr / N).reshape(len(idx), 2, len(idx), 2)
+    nis = np.full(n_gps, np.nan)
+    nis[ok] = np.einsum("iab,iaib->i", np.linalg.inv(S[ok]), moment[ok][:, :, ok, :])
     result = MonteCarloResult(
-        params=params, n_runs=N, engine=engine, truth=truth, alpha=alpha, seconds=0.0,
+        params=params, n_runs=N, filter=filter, truth=truth, alpha=alpha, seconds=0.0,
         t_gps=params.t_gps, missing=missing, P_prior=P_prior, P_post=P_post, S=S,
         e_mean=e_mean, e_cov=e_cov, e_prior_mean=eb_mean, e_prior_cov=eb_cov,
-        orthogonality=orth, xhat_sq_mean=sums.xx / N,
-        residual_moment=(sums.rr / N).reshape(n_gps, 2, n_gps, 2), nees=sums.nees / N, nis=nis,
-        between=bsums.result(cov[0]) if bsums is not None else None)
+        orthogonality=orth, xhat_sq_mean=xx / N, residual_moment=moment, nees=nees, nis=nis,
+        between=bsums.result(params, P) if bsums is not None else None)
     result.checks()  # the statistics are part of the timed work
     result.seconds = time.perf_counter() - start
     return result
 
 
-def format_checks(result: MonteCarloResult) -> str:
-    """A fixed-precision text table of the checks (for notebooks and the CLI)."""
-    lines = [f"{'check':<22} {'inside':>7} {'worst':>7}  verdict",
-             f"{'-' * 22} {'-' * 7} {'-' * 7}  -------"]
-    checks = dict(result.checks())
-    if result.between is not None:
-        checks["between_fixes"] = result.between_fixes_check()
-    for name, c in checks.items():
-        verdict = "pass" if c.passed else "FAIL"
-        lines.append(f"{name:<22} {c.inside_fraction:7.3f} {c.worst:7.2f}  {verdict}")
-    return "\n".join(lines)
+def _run_on_threads(setup: _Setup, chunks, flying: int, combine, bar):
+    """Run the chunks on ``flying`` threads, at most ``flying`` submitted at a time, and add their sums
+    in chunk order.  The bar is moved from this thread only (a count the workers raise is read every
+    0.1 s).  An interruption (KeyboardInterrupt) cancels what has not started and stops the rest at
+    their next realization (filterpy) or chunk."""
+    lock = threading.Lock()
+    done = [0, 0]  # realizations finished by the workers (filterpy), and shown on the bar
+
+    def one_more():
+        with lock:
+            done[0] += 1
+
+    def show():
+        with lock:
+            new = done[0] - done[1]
+            done[1] = done[0]
+        if new:
+            bar.update(new)
+
+    pool = ThreadPoolExecutor(max_workers=flying, thread_name_prefix="kfcal-mc")
+    try:
+        pending = deque()
+        queue = iter(chunks)
+        for size, rng in itertools.islice(queue, flying):
+            pending.append((size, pool.submit(_chunk, setup, size, rng, one_more)))
+        while pending:
+            size, future = pending.popleft()
+            while True:
+                try:
+                    part = future.result(timeout=0.1)
+                    break
+                except FutureTimeout:
+                    show()
+            show()
+            combine(part, size)
+            for size, rng in itertools.islice(queue, 1):
+                pending.append((size, pool.submit(_chunk, setup, size, rng, one_more)))
+    finally:
+        setup.cancel.set()
+        pool.shutdown(wait=False, cancel_futures=True)

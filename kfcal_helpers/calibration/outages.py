@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..validation import require_instance
 from .params import CalibrationParams
 
 __all__ = ["outage_mask", "parse_outage"]
@@ -37,8 +38,7 @@ def outage_mask(params: CalibrationParams, windows, name: str = "windows") -> np
     ------
     ValueError naming ``name`` if a window is malformed, empty or outside ``[0, duration]``.
     """
-    if not isinstance(params, CalibrationParams):
-        raise ValueError(f"params must be a CalibrationParams, got {type(params).__name__}")
+    require_instance("params", params, CalibrationParams)
     try:
         pairs = [tuple(w) for w in windows]
     except TypeError:

@@ -3,10 +3,15 @@
 Shapes: ``n`` realizations, ``n_imu`` IMU samples (6001 for the defaults),
 ``n_gps`` GPS fixes (151).  Units: m, m/s, m/s^2, s.
 
-Random draws, in this order from the ``numpy.random.Generator`` you pass:
-``p0`` (n,), ``v0`` (n,), ``b`` (n,), IMU noise ``w`` (n, n_imu), GPS noise
-``eta`` (n, n_gps, 2).  The same generator state therefore gives the same
-realizations whatever the truth model.
+Random draws (:func:`draw_realizations`), in this order from the generator of ``seed``
+(an int, or a ``numpy.random.Generator`` that is advanced): ``p0`` (n,), ``v0`` (n,), ``b`` (n,),
+IMU noise ``w`` (n, n_imu), GPS noise ``eta`` (n, n_gps, 2).  The same seed therefore gives the
+same realizations whatever the truth model.
+
+:func:`simulate` builds the 200 Hz truth, IMU and GPS from the draws.  The Monte Carlo needs only
+the error state at the fixes, which is linear in the draws: :func:`error_state_at_fixes` computes
+it from the sums of the IMU noise over each GPS period, without the 200 Hz arrays (the same numbers
+as ``simulate(...).dx_at_fixes`` to rounding, see ``tests/test_calibration_engine.py``).
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..validation import require_choice, require_int
+from ..validation import as_generator, require_choice, require_instance, require_int, require_mask
 from .params import CalibrationParams
 
 __all__ = [
@@ -25,6 +30,10 @@ __all__ = [
     "integrate_left",
     "Simulation",
     "simulate",
+    "Draws",
+    "draw_realizations",
+    "error_state_at_fixes",
+    "error_state_full",
 ]
 
 TRUTH_MODELS = ("euler", "analytic")
@@ -145,15 +154,111 @@ class Simulation:
         return self.z - np.stack([self.p_c[:, idx], self.v_c[:, idx]], axis=-1)
 
 
-def simulate(params: CalibrationParams, n_runs: int, rng: np.random.Generator,
-             truth: str = "euler", missing_fixes=None) -> Simulation:
+@dataclass
+class Draws:
+    """The random draws of ``n`` realizations (see the module docstring for their order).
+
+    p0 (n,) m, v0 (n,) m/s, b (n,) m/s^2: initial position, velocity and bias;
+    w (n, n_imu) m/s^2: IMU white noise; eta (n, n_gps, 2) [m, m/s]: GPS noise.
+    """
+
+    p0: np.ndarray
+    v0: np.ndarray
+    b: np.ndarray
+    w: np.ndarray
+    eta: np.ndarray
+
+
+def draw_realizations(params: CalibrationParams, n_runs: int, seed) -> Draws:
+    """The random draws of ``n_runs`` realizations from ``seed`` (int or numpy.random.Generator)."""
+    require_instance("params", params, CalibrationParams)
+    n_runs = require_int("n_runs", n_runs, minimum=1)
+    rng = as_generator("seed", seed)
+    p0 = params.p0_mean + np.sqrt(params.p0_var) * rng.standard_normal(n_runs)
+    v0 = params.v0_mean + np.sqrt(params.v0_var) * rng.standard_normal(n_runs)
+    b = params.bias_mean + np.sqrt(params.bias_var) * rng.standard_normal(n_runs)
+    w = rng.standard_normal((n_runs, params.n_imu))
+    w *= np.sqrt(params.W)
+    eta = rng.standard_normal((n_runs, params.n_gps, 2))
+    eta *= np.sqrt([params.gps_pos_var, params.gps_vel_var])
+    return Draws(p0, v0, b, w, eta)
+
+
+def _truth_minus_reckoning(params: CalibrationParams, draws: Draws, truth: str, idx) -> tuple[np.ndarray, np.ndarray]:
+    """``(p - p_c, v - v_c)`` at the samples ``idx`` without the IMU error ``b + w``: the truth minus
+    the dead reckoning of the true acceleration from the prior means, (n, len(idx)) each."""
+    t = params.t_imu[idx]
+    dp0 = draws.p0 - params.p0_mean
+    dv0 = draws.v0 - params.v0_mean
+    if truth == "euler":  # both integrate a(t) the same way: only the initial conditions differ
+        return dp0[:, None] + dv0[:, None] * t, np.broadcast_to(dv0[:, None], (len(dp0), len(t)))
+    p, v = analytic_truth(t, draws.p0, draws.v0, params)
+    pa, va = integrate_left(acceleration(params.t_imu, params), params.p0_mean, params.v0_mean, params.dt)
+    return p - pa[idx], v - va[idx]
+
+
+def error_state_at_fixes(params: CalibrationParams, draws: Draws, truth: str = "euler") -> np.ndarray:
+    """The true error state ``[p - p_c, v - v_c, b]`` at the GPS fixes, (n, n_gps, 3), from the draws.
+
+    The dead reckoning's error is the IMU error ``c_l = b + w_l`` integrated twice (Euler):
+    ``dv_j = dv_0 - dt sum_{l<j} c_l`` and ``dp_j = dp_0 + j dt dv_0 - dt^2 sum_{l<j} c_l (j - l - 1/2)``.
+    At the fix ``j = r i`` these sums need only, for every GPS period ``m``, ``s_m = sum_q w_{rm+q}``
+    and ``u_m = sum_q w_{rm+q} (r - q - 1/2)`` (q = 0..r-1): ``sum_{l<ri} w_l = S_i = sum_{m<i} s_m`` and
+    ``sum_{l<ri} w_l (ri - l - 1/2) = r sum_{k<i} S_k + sum_{m<i} u_m``.  The same numbers as
+    ``simulate(...).dx_at_fixes`` on the same draws, to rounding, from one small matrix product.
+    """
+    require_instance("params", params, CalibrationParams)
+    require_instance("draws", draws, Draws)
+    require_choice("truth", truth, TRUTH_MODELS)
+    n, n_gps, r, dt = len(draws.b), params.n_gps, params.steps_per_fix, params.dt
+    idx = params.fix_indices
+    weights = np.empty((r, 2))
+    weights[:, 0] = 1.0
+    weights[:, 1] = r - np.arange(r) - 0.5
+    su = np.zeros((n, n_gps, 2))  # [S_i, U_i]: the exclusive cumulative sums of [s_m, u_m]
+    blocks = draws.w[:, : (n_gps - 1) * r].reshape(n, n_gps - 1, r)  # a view: row-contiguous periods
+    np.cumsum(blocks @ weights, axis=1, out=su[:, 1:])
+    T = np.zeros((n, n_gps))  # r sum_{k<i} S_k
+    np.cumsum(su[:, :-1, 0], axis=1, out=T[:, 1:])
+    j = idx.astype(float)
+    dp, dv = _truth_minus_reckoning(params, draws, truth, idx)
+    b = draws.b[:, None]
+    out = np.empty((n, n_gps, 3))
+    out[..., 0] = dp - dt * dt * (b * (0.5 * j * j) + r * T + su[..., 1])
+    out[..., 1] = dv - dt * (b * j + su[..., 0])
+    out[..., 2] = b
+    return out
+
+
+def error_state_full(params: CalibrationParams, draws: Draws, truth: str = "euler") -> np.ndarray:
+    """The true error state at every IMU sample, (n, n_imu, 3), by the formulas of
+    :func:`error_state_at_fixes` with running sums over all samples (``simulate(...).dx`` to rounding)."""
+    require_instance("params", params, CalibrationParams)
+    require_instance("draws", draws, Draws)
+    require_choice("truth", truth, TRUTH_MODELS)
+    n, n_imu, dt = len(draws.b), params.n_imu, params.dt
+    S = _exclusive_cumsum(draws.w)  # sum_{l<j} w_l
+    j = np.arange(n_imu, dtype=float)
+    dp, dv = _truth_minus_reckoning(params, draws, truth, np.arange(n_imu))
+    b = draws.b[:, None]
+    out = np.empty((n, n_imu, 3))
+    out[..., 1] = dv - dt * (b * j + S)
+    S2 = _exclusive_cumsum(S)  # sum_{l<j} w_l (j - l - 1) = sum_{k<j} S_k
+    S2 += 0.5 * S
+    del S
+    out[..., 0] = dp - dt * dt * (b * (0.5 * j * j) + S2)
+    out[..., 2] = b
+    return out
+
+
+def simulate(params: CalibrationParams, n_runs: int, seed, truth: str = "euler", missing_fixes=None) -> Simulation:
     """Simulate ``n_runs`` realizations of truth, IMU and GPS.
 
     Parameters
     ----------
     params : CalibrationParams
     n_runs : int >= 1
-    rng : numpy.random.Generator (e.g. ``numpy.random.default_rng(seed)``)
+    seed : int seed of ``numpy.random.default_rng``, or a numpy.random.Generator (advanced by the draws)
     truth : "euler" (the model the error-state filter assumes; default) or
         "analytic" (the exact kinematics, see notebook 7)
     missing_fixes : optional bool array (n_gps,), True where the GPS fix is
@@ -163,23 +268,15 @@ def simulate(params: CalibrationParams, n_runs: int, rng: np.random.Generator,
     -------
     Simulation
     """
-    if not isinstance(params, CalibrationParams):
-        raise ValueError(f"params must be a CalibrationParams, got {type(params).__name__}")
+    require_instance("params", params, CalibrationParams)
     n_runs = require_int("n_runs", n_runs, minimum=1)
     require_choice("truth", truth, TRUTH_MODELS)
-    if not isinstance(rng, np.random.Generator):
-        raise ValueError("rng must be a numpy.random.Generator, e.g. numpy.random.default_rng(seed)")
+    missing = require_mask("missing_fixes", missing_fixes, params.n_gps)
+    d = draw_realizations(params, n_runs, seed)
+    p0, v0, b, w, eta = d.p0, d.v0, d.b, d.w, d.eta
     t = params.t_imu
     dt = params.dt
     a = acceleration(t, params)
-
-    p0 = params.p0_mean + np.sqrt(params.p0_var) * rng.standard_normal(n_runs)
-    v0 = params.v0_mean + np.sqrt(params.v0_var) * rng.standard_normal(n_runs)
-    b = params.bias_mean + np.sqrt(params.bias_var) * rng.standard_normal(n_runs)
-    w = rng.standard_normal((n_runs, params.n_imu))
-    w *= np.sqrt(params.W)
-    eta = rng.standard_normal((n_runs, params.n_gps, 2))
-    eta *= np.sqrt([params.gps_pos_var, params.gps_vel_var])
 
     if truth == "euler":
         # a(t) is the same for every realization: integrate it once, then add the
@@ -195,10 +292,6 @@ def simulate(params: CalibrationParams, n_runs: int, rng: np.random.Generator,
 
     idx = params.fix_indices
     z = np.stack([p[:, idx], v[:, idx]], axis=-1) + eta
-    if missing_fixes is not None:
-        missing = np.asarray(missing_fixes)
-        if missing.shape != (params.n_gps,) or missing.dtype != bool:
-            raise ValueError(f"missing_fixes must be a bool array of shape ({params.n_gps},), "
-                             f"got {missing.dtype} {missing.shape}")
+    if missing is not None:
         z[:, missing, :] = np.nan
     return Simulation(params, truth, t, a, p, v, b, w, a_c, p_c, v_c, z)
