@@ -8,8 +8,7 @@ from pathlib import Path
 
 from ..consistency import format_checks
 from ..validation import MAX_SEED, cli_float, cli_int, require_int
-from .montecarlo import CHECK_NAMES, estimate_run, run_monte_carlo
-from .montecarlo import ENGINES as FILTERS  # PRE-MERGE(E): FILTERS
+from .montecarlo import CHECK_NAMES, FILTERS, estimate_run, run_monte_carlo
 from .outages import outage_mask, parse_outage
 from .params import CalibrationParams
 from .simulation import TRUTH_MODELS

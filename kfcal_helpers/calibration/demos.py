@@ -25,11 +25,10 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..consistency import chi2_bounds
-from ..demos import (estimate_between_fixes, filter_errors_at_fixes, noise_of_simulation,  # TODO(E): .engine
-                     sample_noise_at_fixes)
 from ..validation import (require_choice, require_finite, require_instance, require_int, require_positive,
                           require_probability)
-from .filters import covariance_sequence
+from .engine import (covariance_sequence, estimate_between_fixes, filter_errors_time_major, noise_of_simulation,
+                     sample_noise_time_major)
 from .outages import outage_mask
 from .params import CalibrationParams
 from .simulation import simulate
@@ -163,19 +162,22 @@ def compute_calibration_demo(gps_rate: float = 5.0, W: float = 0.0004, gps_pos_v
 
     sim = simulate(params, 1, rng_one, missing_fixes=missing)  # the realization drawn at 200 Hz
     if ensemble == "fixes":
-        e0, w, eta = sample_noise_at_fixes(params, n_runs, rng_ens)
+        e0, w_t, eta_t = sample_noise_time_major(params, n_runs, rng_ens)
     else:
         e0, w, eta = noise_of_simulation(simulate(params, n_runs, rng_ens, missing_fixes=missing))
-    # the filter's errors at the fixes: the realization (row 0) and the ensemble in one loop
+        w_t, eta_t = w.transpose(1, 0, 2), eta.transpose(1, 0, 2)
+    # the filter's errors at the fixes: the realization (column 0) and the ensemble in one loop
     one = noise_of_simulation(sim)
-    e_post = filter_errors_at_fixes(params, cov, *(np.concatenate([a, b]) for a, b in zip(one, (e0, w, eta))))[1]
-    x_post = sim.dx_at_fixes[0] - e_post[0]  # the realization's estimate at the fixes
+    e_post = filter_errors_time_major(params, cov, np.concatenate([one[0], e0]),
+                                      np.concatenate([one[1].transpose(1, 0, 2), w_t], axis=1),
+                                      np.concatenate([one[2].transpose(1, 0, 2), eta_t], axis=1))[1]
+    x_post = sim.dx_at_fixes[0] - e_post[:, 0]  # the realization's estimate at the fixes
     error = sim.dx[0] - estimate_between_fixes(params, x_post)
-    e = e_post[1:]  # (n_runs, n_gps, 3)
+    e = np.ascontiguousarray(e_post[:, 1:].transpose(0, 2, 1))  # (n_gps, 3, n_runs): reduce the last axis
     P = cov[0]
     return CalibrationDemo(params, outage, missing, params.t_imu, error,
                            np.sqrt(np.diagonal(P, axis1=1, axis2=2)), params.t_gps, cov[1], P[params.fix_indices],
-                           e.mean(axis=0), e.std(axis=0, ddof=1), n_runs, ensemble, alpha)
+                           e.mean(axis=-1), e.std(axis=-1, ddof=1), n_runs, ensemble, alpha)
 
 
 _CAL_LABELS = (r"position error [m]", r"velocity error [m/s]", r"bias error [m/s$^2$]")
