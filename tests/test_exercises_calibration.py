@@ -9,11 +9,16 @@ import pytest
 from filterpy.kalman import KalmanFilter
 from scipy import stats
 
-import kfcal_helpers.exercises as exercises
+import kfcal_helpers.calibration.exercises as ex
 from kfcal_helpers.calibration import (CalibrationParams, covariance_sequence, error_state_model,
                                        rts_smooth_fixes, run_monte_carlo)
-from kfcal_helpers.exercises import Feedback, calibration as ex
-from kfcal_helpers.exercises.calibration import GENERIC, HINTS
+from kfcal_helpers.calibration.exercises import EXERCISES
+from kfcal_helpers.exercises._core import Exercise, Feedback
+
+#: the records' hints, generic hints and praise, by exercise id
+HINTS = {i: e.hints for i, e in EXERCISES.items()}
+GENERIC = {i: e.hint for i, e in EXERCISES.items()}
+PRAISE = {i: e.praise for i, e in EXERCISES.items()}
 
 DT = 0.005  # s, the default IMU period
 A = 10.0  # m/s^2
@@ -444,13 +449,25 @@ def test_mismatch_failures_check():
 # --------------------------------------------------------------------------------------------
 # package-level properties
 # --------------------------------------------------------------------------------------------
-def test_every_check_is_exported_without_name_collisions():
-    assert len(ex.__all__) == 26 and len(set(ex.__all__)) == 26
-    for name in ex.__all__:
-        assert getattr(exercises, name) is getattr(ex, name), f"{name} is shadowed by another exercises module"
+def test_every_check_is_exported_and_has_one_record():
+    checks = [n for n in ex.__all__ if n.startswith("check_")]
+    assert len(checks) == 30 and len(set(checks)) == 30
+    for name in checks:
+        assert callable(getattr(ex, name)), name
+    assert all(isinstance(e, Exercise) and e.id == i for i, e in EXERCISES.items())
     ids = set(CASES) | set(FUNCTION_CHECKS)
-    assert ids == set(HINTS) == set(GENERIC) == set(ex.PRAISE)
+    assert ids | {"14.1", "14.2", "17.1", "17.2"} == set(EXERCISES)
     assert {i.split(".")[0] for i in ids} == {"01", "02", "03", "04", "05", "06", "07", "15", "16"}
+
+
+def test_settings_are_keyword_only():
+    """The naming and calling rule: check_<topic>(answer, *, settings...)."""
+    import inspect
+
+    for name in (n for n in ex.__all__ if n.startswith("check_")):
+        params = list(inspect.signature(getattr(ex, name)).parameters.values())
+        assert params[0].kind is inspect.Parameter.POSITIONAL_OR_KEYWORD, name
+        assert all(p.kind is inspect.Parameter.KEYWORD_ONLY for p in params[1:]), name
 
 
 def _numbers(text):

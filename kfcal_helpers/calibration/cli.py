@@ -6,8 +6,9 @@ import argparse
 import re
 from pathlib import Path
 
+from ..consistency import format_checks
 from ..validation import MAX_SEED, cli_float, cli_int, require_int
-from .montecarlo import CHECK_NAMES, ENGINES, estimate_run, format_checks, run_monte_carlo
+from .montecarlo import CHECK_NAMES, FILTERS, estimate_run, run_monte_carlo
 from .outages import outage_mask, parse_outage
 from .params import CalibrationParams
 from .simulation import TRUTH_MODELS
@@ -42,7 +43,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "or 1 h are refused")
     p.add_argument("--seed", type=cli_int(0, MAX_SEED), default=0,
                    help="seed of numpy.random.default_rng, an integer >= 0 (default 0)")
-    p.add_argument("--engine", choices=ENGINES, default="batch", help="batch (fast) or filterpy (one filter per run)")
+    p.add_argument("--engine", choices=FILTERS, default="batch", dest="filter",
+                   help="the filter code: batch (fast) or filterpy (one filter per run); JSON key 'filter'")
     p.add_argument("--omega", type=cli_float(0, unit="rad/s"), default=d.omega,
                    help=f"rad/s, at most pi * IMU rate (default {d.omega:g})")
     p.add_argument("--imu-rate", type=cli_float(0, unit="Hz"), default=d.imu_rate, help=f"Hz (default {d.imu_rate:g})")
@@ -71,7 +73,7 @@ def result_to_dict(mc, outages=()) -> dict:
     checks = mc.checks()
     out = {
         "runs": mc.n_runs,
-        "engine": mc.engine,
+        "filter": mc.filter,
         "truth": mc.truth,
         "seconds": mc.seconds,
         "alpha": mc.alpha,
@@ -92,7 +94,7 @@ def result_to_dict(mc, outages=()) -> dict:
     return out
 
 
-#: file stem of each ``--figures`` file -> the lecture figure (kfcal_helpers.figures.FIGURES) it draws
+#: file stem of each ``--figures`` file -> the lecture figure (:data:`.figures.FIGURES`) it draws
 FIGURE_FILES = {"calib_errors": "calib_errors", "calib_sigma_sawtooth": "calib_sigma_sawtooth",
                 "calib_checks": None}
 
@@ -100,8 +102,8 @@ FIGURE_FILES = {"calib_errors": "calib_errors", "calib_sigma_sawtooth": "calib_s
 def figure_case(mc, seed: int = 0):
     """The scenario ``--figures`` draws: ``mc``'s parameters, truth model and missing fixes (outages),
     and one realization seeded with ``seed`` whose fixes inside the outages are missing, as in the
-    Monte Carlo (a :class:`kfcal_helpers.figures.CalibrationCase`)."""
-    from ..figures import CalibrationCase
+    Monte Carlo (a :class:`~kfcal_helpers.calibration.figures.CalibrationCase`)."""
+    from .figures import CalibrationCase
 
     return CalibrationCase.from_monte_carlo(mc, seed=seed)
 
@@ -123,15 +125,17 @@ def write_figures(mc, directory, seed: int = 0) -> list[Path]:
 
     The realization (seeded with ``seed``) has the same missing fixes as ``mc`` (its outages,
     shaded in the figures).  The first two are the lecture figures ``calib_errors`` and
-    ``calib_sigma_sawtooth`` of :mod:`kfcal_helpers.figures`.  Returns the paths written.
+    ``calib_sigma_sawtooth`` of :mod:`kfcal_helpers.calibration.figures`.  Returns the paths written.
     """
-    from ..figures import FIGURES, FigureData, LectureFigure, save_figures
+    from ..figures import save_figures
+    from ..registry import LectureFigure
+    from .figures import FIGURES, CalibrationFigureData
 
     by_name = {f.name: f for f in FIGURES}
     entries = [LectureFigure(stem, by_name[name].description, by_name[name].make) if name else
                LectureFigure(stem, "the six Monte Carlo checks", _all_checks)
                for stem, name in FIGURE_FILES.items()]
-    data = FigureData(calibration=figure_case(mc, seed))
+    data = CalibrationFigureData(calibration=figure_case(mc, seed))
     return save_figures(entries, directory, data, argname="--figures")
 
 
@@ -157,7 +161,7 @@ def run(args) -> int:
     params = _params(args)
     between = bool(args.json) and params.n_imu > params.n_gps  # the 200 Hz check, when samples lie between fixes
     # before anything of the scenario's size is allocated: refuse what cannot fit or would take hours
-    estimate_run(params, args.runs, args.engine, runs_name="--runs",
+    estimate_run(params, args.runs, args.filter, runs_name="--runs",
                  params_name="--duration, --imu-rate, --gps-rate" + (", --figures" if args.figures else ""),
                  extra_bytes=FIGURES_BYTES + FIGURES_BYTES_PER_FIX2 * params.n_gps**2 if args.figures else 0.0,
                  between_fixes=between)
@@ -166,9 +170,8 @@ def run(args) -> int:
     if missing is not None and (~missing).sum() < 2:
         raise ValueError(f"--outage: the outages leave {int((~missing).sum())} of the {params.n_gps} GPS fixes; "
                          f"at least 2 must remain")
-    mc = run_monte_carlo(params, n_runs=args.runs, seed=args.seed, engine=args.engine,
-                         truth=args.truth, progress=None, missing_fixes=missing,
-                         between_fixes=between)
+    mc = run_monte_carlo(params, args.runs, args.seed, filter=args.filter, truth=args.truth, progress=None,
+                         missing_fixes=missing, between_fixes=between)
     written = write_figures(mc, args.figures, seed=args.seed) if args.figures else []
     if args.json:
         d = result_to_dict(mc, windows)
@@ -177,7 +180,7 @@ def run(args) -> int:
         print(dumps_json(d))
         return 0
     s, es = mc.sigma_final, mc.ensemble_sigma_final
-    print(f"{mc.n_runs} realizations, engine {mc.engine}, truth {mc.truth}, {mc.seconds:.2f} s")
+    print(f"{mc.n_runs} realizations, filter {mc.filter}, truth {mc.truth}, {mc.seconds:.2f} s")
     print(f"sigma at the last fix from P:        p {s[0]:.4g} m, v {s[1]:.4g} m/s, b {s[2]:.4g} m/s^2")
     print(f"sigma at the last fix from ensemble: p {es[0]:.4g} m, v {es[1]:.4g} m/s, b {es[2]:.4g} m/s^2")
     print(format_checks(mc))

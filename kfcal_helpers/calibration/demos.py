@@ -1,0 +1,297 @@
+"""The calibration lecture demo (notebook 17): what one slider move recomputes, and the figure it redraws.
+
+:func:`compute_calibration_demo` runs the batch filter for one parameter set and returns plain arrays
+in a :class:`CalibrationDemo`: the covariances and gains once
+(:func:`~kfcal_helpers.calibration.covariance_sequence`, propagated fix to fix), one 200 Hz
+realization (``simulate``) and a 200-realization ensemble drawn at the fixes
+(:func:`~kfcal_helpers.calibration.engine.sample_noise_at_fixes`), whose errors come from the
+filter's error recursion (:func:`~kfcal_helpers.calibration.engine.filter_errors_at_fixes`, the
+numbers ``batch_filter`` gives on the same draws); the ensemble's spread is compared with the
+filter's sigma at every fix.  :class:`CalibrationDemoFigure` draws the errors with their +-2 sigma
+bands; it builds its figure once and :meth:`~CalibrationDemoFigure.update` only replaces the data,
+so a redraw costs one render.  :func:`calibration_controls` builds the sliders; the notebook wires
+them to the figure with the shared :class:`kfcal_helpers.demos.LiveDemo`.  The benchmark
+(``benchmarks/bench_demos.py``) and the tests time and check the compute function on its own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import ClassVar
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from ..consistency import chi2_bounds
+from ..validation import (require_choice, require_finite, require_instance, require_int, require_positive,
+                          require_probability)
+from .engine import (covariance_sequence, estimate_between_fixes, filter_errors_time_major, noise_of_simulation,
+                     sample_noise_time_major)
+from .outages import outage_mask
+from .params import CalibrationParams
+from .simulation import simulate
+
+__all__ = ["ENSEMBLES", "LIVE_FIGSIZE", "valid_gps_rates", "CalibrationDemo", "compute_calibration_demo",
+           "CalibrationDemoFigure", "draw_calibration_demo", "calibration_controls"]
+
+#: how the demo's ensemble is drawn: at the fixes only, or by the full 200 Hz simulation
+ENSEMBLES = ("fixes", "simulate")
+#: figure size (inches, at the notebook style's 90 dpi) of the live view: with the controls in a column
+#: beside the image, the whole demo fits a 1280x800 browser window (tests/test_browser_demos.py)
+LIVE_FIGSIZE = (7.8, 5.4)
+
+
+def valid_gps_rates(imu_rate: float = 200.0, max_rate: float = 25.0) -> tuple[float, ...]:
+    """GPS rates (Hz) that divide ``imu_rate`` (Hz), up to ``max_rate``: the slider's options.
+
+    ``valid_gps_rates()`` is ``(1, 2, 4, 5, 8, 10, 20, 25)`` for the 200 Hz IMU.  The default
+    ``max_rate`` stops at 25 Hz: the cost of a redraw grows with the number of fixes, and at
+    40-50 Hz it passes 100 ms on a 2-core machine (``benchmarks/bench_demos.py``).
+    """
+    imu_rate = require_positive("imu_rate", imu_rate)
+    max_rate = require_positive("max_rate", max_rate)
+    n = int(round(imu_rate))
+    if abs(imu_rate - n) > 1e-9 * imu_rate:
+        raise ValueError(f"imu_rate must be a whole number of Hz, got {imu_rate!r}")
+    return tuple(float(d) for d in range(1, n + 1) if n % d == 0 and d <= max_rate)
+
+
+
+@dataclass(frozen=True, eq=False)
+class CalibrationDemo:
+    """One redraw of the calibration demo (n_imu IMU samples, n_gps fixes).
+
+    params : CalibrationParams used; outage : (start, end) s or None; missing : (n_gps,) bool
+    t : (n_imu,) s; error : (n_imu, 3) one realization's error dx - dx_hat [m, m/s, m/s^2]
+        (a posteriori at fixes, predicted in between); sigma : (n_imu, 3) the filter's sqrt(diag P)
+    t_gps : (n_gps,) s; P_prior, P_post : (n_gps, 3, 3) the filter's covariances at the fixes
+    ens_mean, ens_std : (n_gps, 3) mean and standard deviation (ddof 1) over ``n_runs``
+        realizations of the a posteriori error at every fix
+    ensemble : "fixes" or "simulate" (how the ensemble was drawn); alpha : level of the band
+    """
+
+    params: CalibrationParams
+    outage: tuple[float, float] | None
+    missing: np.ndarray
+    t: np.ndarray
+    error: np.ndarray
+    sigma: np.ndarray
+    t_gps: np.ndarray
+    P_prior: np.ndarray
+    P_post: np.ndarray
+    ens_mean: np.ndarray
+    ens_std: np.ndarray
+    n_runs: int
+    ensemble: str
+    alpha: float
+
+    #: the arrays that must be finite before the demo is drawn (read by kfcal_helpers.demos.LiveDemo)
+    finite_fields: ClassVar[tuple] = ("error", "sigma", "ens_std", "P_post")
+
+    @property
+    def sigma_fix(self) -> np.ndarray:
+        """The filter's a posteriori sigma at the fixes, (n_gps, 3)."""
+        return np.sqrt(np.diagonal(self.P_post, axis1=1, axis2=2))
+
+    @property
+    def ratio(self) -> np.ndarray:
+        """Ensemble std over the filter's sigma at every fix, (n_gps, 3); about 1 when P is right."""
+        return self.ens_std / self.sigma_fix
+
+    @property
+    def ratio_band(self) -> tuple[float, float]:
+        """Two-sided band of ``ratio`` at level ``alpha``: ``(N-1) s^2 / sigma^2 ~ chi2(N-1)``,
+        so ``s / sigma`` lies in ``[sqrt(chi2(alpha/2)/(N-1)), sqrt(chi2(1-alpha/2)/(N-1))]``."""
+        lo, hi = chi2_bounds(1, self.n_runs - 1, self.alpha)
+        return float(np.sqrt(lo)), float(np.sqrt(hi))
+
+    @property
+    def inside_fraction(self) -> float:
+        """Share of the (fix, component) ratios inside :attr:`ratio_band` (about 1 - alpha)."""
+        lo, hi = self.ratio_band
+        return float(np.mean((self.ratio >= lo) & (self.ratio <= hi)))
+
+
+def compute_calibration_demo(gps_rate: float = 5.0, W: float = 0.0004, gps_pos_var: float = 1.0,
+                             bias_var: float = 0.01, outage=None, n_runs: int = 200, seed: int = 17,
+                             base: CalibrationParams | None = None, ensemble: str = "fixes",
+                             alpha: float = 0.05) -> CalibrationDemo:
+    """Everything one redraw of the calibration demo shows, on the batch path.
+
+    Parameters
+    ----------
+    gps_rate : GPS fix rate, Hz; must divide the IMU rate (see :func:`valid_gps_rates`)
+    W : IMU white-noise variance per sample, (m/s^2)^2
+    gps_pos_var : GPS position noise variance, m^2
+    bias_var : prior variance of the bias M_b, (m/s^2)^2
+    outage : None or a GPS outage window (start, end), s, with 0 <= start < end <= duration
+    n_runs : realizations in the ensemble, >= 2
+    seed : int >= 0; the same seed gives the same noise draws (common random numbers, so a
+        slider move changes the parameters, not the luck)
+    base : the other parameters (default: ``CalibrationParams()``, the course problem's)
+    ensemble : "fixes" (default: the ensemble's noises drawn at the fixes only,
+        :func:`sample_noise_at_fixes`) or "simulate" (the full 200 Hz simulation, slower)
+    alpha : significance level of the ensemble band, in (0, 1)
+
+    What is computed: the covariances and gains once (``covariance_sequence``); one
+    realization at 200 Hz (``simulate``) and the ensemble's noises; the filter's errors at the
+    fixes of all of them in one loop (:func:`filter_errors_at_fixes`, the numbers
+    ``batch_filter`` gives); the realization's estimate between fixes
+    (:func:`estimate_between_fixes`); the ensemble's error statistics.
+
+    Returns
+    -------
+    CalibrationDemo
+    """
+    base = require_instance("base", base, CalibrationParams, allow_none=True) or CalibrationParams()
+    params = replace(base, gps_rate=gps_rate, W=W, gps_pos_var=gps_pos_var, bias_var=bias_var)
+    n_runs = require_int("n_runs", n_runs, minimum=2)
+    seed = require_int("seed", seed, minimum=0)
+    require_choice("ensemble", ensemble, ENSEMBLES)
+    alpha = require_probability("alpha", alpha)
+    if outage is None:
+        missing = np.zeros(params.n_gps, bool)
+    else:
+        missing = outage_mask(params, [outage], name="outage")
+        outage = (float(outage[0]), float(outage[1]))
+
+    cov = covariance_sequence(params, missing)
+    rng_one, rng_ens = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
+
+    sim = simulate(params, 1, rng_one, missing_fixes=missing)  # the realization drawn at 200 Hz
+    if ensemble == "fixes":
+        e0, w_t, eta_t = sample_noise_time_major(params, n_runs, rng_ens)
+    else:
+        e0, w, eta = noise_of_simulation(simulate(params, n_runs, rng_ens, missing_fixes=missing))
+        w_t, eta_t = w.transpose(1, 0, 2), eta.transpose(1, 0, 2)
+    # the filter's errors at the fixes: the realization (column 0) and the ensemble in one loop
+    one = noise_of_simulation(sim)
+    e_post = filter_errors_time_major(params, cov, np.concatenate([one[0], e0]),
+                                      np.concatenate([one[1].transpose(1, 0, 2), w_t], axis=1),
+                                      np.concatenate([one[2].transpose(1, 0, 2), eta_t], axis=1))[1]
+    x_post = sim.dx_at_fixes[0] - e_post[:, 0]  # the realization's estimate at the fixes
+    error = sim.dx[0] - estimate_between_fixes(params, x_post)
+    e = np.ascontiguousarray(e_post[:, 1:].transpose(0, 2, 1))  # (n_gps, 3, n_runs): reduce the last axis
+    P = cov[0]
+    return CalibrationDemo(params, outage, missing, params.t_imu, error,
+                           np.sqrt(np.diagonal(P, axis1=1, axis2=2)), params.t_gps, cov[1], P[params.fix_indices],
+                           e.mean(axis=-1), e.std(axis=-1, ddof=1), n_runs, ensemble, alpha)
+
+
+_CAL_LABELS = (r"position error [m]", r"velocity error [m/s]", r"bias error [m/s$^2$]")
+
+
+def _new_figure(figure, figsize):
+    """``figure`` if given (a matplotlib Figure; given an Agg canvas if it has none that can
+    render), else a new pyplot figure of ``figsize`` inches."""
+    if figure is None:
+        return plt.figure(figsize=figsize)
+    if not isinstance(figure, Figure):
+        raise ValueError(f"figure must be a matplotlib Figure or None, got {type(figure).__name__}")
+    if not isinstance(figure.canvas, FigureCanvasAgg):
+        FigureCanvasAgg(figure)
+    figure.clear()
+    return figure
+
+
+class CalibrationDemoFigure:
+    """The calibration demo's figure, built once; :meth:`update` puts a new
+    :class:`CalibrationDemo` into the same lines (a redraw then only re-renders).
+
+    Three panels (position, velocity, bias): one realization's error at 200 Hz, the filter's
+    +-2 sigma, the ensemble's +-2 s at the fixes, the outage shaded.  ``figure``: a Figure to
+    draw on (e.g. ``matplotlib.figure.Figure()`` for a widget, outside pyplot); default a new
+    pyplot figure.  ``t_zoom`` (s): the y axes are scaled to the curves after ``t_zoom`` (the
+    first seconds, with the 10 m prior sigma of the position, would flatten everything else).
+    """
+
+    def __init__(self, figure=None, t_zoom: float = 2.0):
+        t_zoom = require_finite("t_zoom", t_zoom)
+        if t_zoom < 0:
+            raise ValueError(f"t_zoom must be a time >= 0 s (the y axes are scaled to the curves after it), "
+                             f"got {t_zoom!r}")
+        self.t_zoom = t_zoom
+        self.fig = _new_figure(figure, (9.0, 7.2))
+        self.axes = self.fig.subplots(3, 1, sharex=True)
+        self.lines = []
+        for k, ax in enumerate(self.axes):
+            err, = ax.plot([], [], color="C3", lw=0.7, label="error, one realization")
+            up, = ax.plot([], [], color="k", lw=0.8, label=r"filter $\pm 2\sigma$")
+            down, = ax.plot([], [], color="k", lw=0.8)
+            ens_up, = ax.plot([], [], ".", color="C0", ms=3, label="ensemble $\\pm 2s$")
+            ens_down, = ax.plot([], [], ".", color="C0", ms=3)
+            self.lines.append((err, up, down, ens_up, ens_down))
+            ax.set_ylabel(_CAL_LABELS[k], fontsize=9)
+        self.legend = self.axes[0].legend(loc="upper right", ncol=3, fontsize=8)
+        self.axes[-1].set_xlabel("time $t$ [s]")
+        self.fig.subplots_adjust(left=0.1, right=0.98, bottom=0.08, top=0.94, hspace=0.3)
+        self.spans = []
+
+    def update(self, demo: CalibrationDemo):
+        """Draw ``demo`` into the figure; returns the Figure."""
+        if not isinstance(demo, CalibrationDemo):
+            raise ValueError(f"demo must be a CalibrationDemo, got {type(demo).__name__}")
+        p = demo.params
+        late, late_fix = demo.t >= self.t_zoom, demo.t_gps >= self.t_zoom
+        zoom = f"; y zoomed past t = {self.t_zoom:g} s" if late_fix.any() and self.t_zoom > demo.t[0] else ""
+        if not late_fix.any():
+            late, late_fix = np.ones_like(late), np.ones_like(late_fix)
+        for span in self.spans:
+            span.remove()
+        self.spans = []
+        for k, (ax, (err, up, down, ens_up, ens_down)) in enumerate(zip(self.axes, self.lines)):
+            s2, e2 = 2 * demo.sigma[:, k], 2 * demo.ens_std[:, k]
+            err.set_data(demo.t, demo.error[:, k])
+            up.set_data(demo.t, s2)
+            down.set_data(demo.t, -s2)
+            ens_up.set_data(demo.t_gps, e2)
+            ens_down.set_data(demo.t_gps, -e2)
+            top = max(s2[late].max(), e2[late_fix].max(), np.abs(demo.error[late, k]).max())
+            ax.set_ylim(-1.15 * top, 1.15 * top)
+            if demo.outage is not None:
+                self.spans.append(ax.axvspan(*demo.outage, color="C1", alpha=0.2, lw=0))
+        self.axes[0].set_xlim(demo.t[0], demo.t[-1])
+        self.legend.get_texts()[2].set_text(f"ensemble $\\pm 2s$ ({demo.n_runs} runs)")
+        lo, hi = demo.ratio_band
+        gap = "" if demo.outage is None else f", outage {demo.outage[0]:g}–{demo.outage[1]:g} s"
+        # short titles in normal weight: text is most of the cost of a redraw
+        self.axes[0].set_title(f"Errors with ±2σ: GPS {p.gps_rate:g} Hz, W {p.W:.1e} (m/s²)², GPS σ_p "
+                               f"{np.sqrt(p.gps_pos_var):.2g} m, bias σ₀ {np.sqrt(p.bias_var):.2g} m/s²{gap}",
+                               fontsize=10, fontweight="normal")
+        self.axes[-1].set_title(f"s/σ inside [{lo:.3f}, {hi:.3f}] at {100 * demo.inside_fraction:.1f} % "
+                                f"of (fix, state) pairs{zoom}",
+                                fontsize=9, fontweight="normal")
+        return self.fig
+
+
+def draw_calibration_demo(demo: CalibrationDemo, t_zoom: float = 2.0):
+    """A new figure of ``demo`` (see :class:`CalibrationDemoFigure`); returns the Figure."""
+    return CalibrationDemoFigure(t_zoom=t_zoom).update(demo)
+
+
+def calibration_controls() -> dict:
+    """The calibration demo's controls (ipywidgets), by name, at the default parameters.
+
+    ``gps_rate`` (Hz, a selection slider of the rates that divide 200 Hz), ``W``
+    ((m/s²)², log scale), ``gps_pos_sigma`` (m, log scale), ``bias_sigma`` (prior σ of the
+    bias, m/s², log scale), ``outage_on`` (checkbox) and ``outage`` (window, s).
+    """
+    import ipywidgets as w
+
+    style = {"description_width": "140px"}
+    layout = w.Layout(width="340px")
+    return {
+        "gps_rate": w.SelectionSlider(options=valid_gps_rates(), value=5.0, description="GPS rate [Hz]",
+                                      style=style, layout=layout),
+        "W": w.FloatLogSlider(value=4e-4, base=10, min=-6, max=-2, step=0.1, readout_format=".1e",
+                              description="IMU noise W [(m/s²)²]", style=style, layout=layout),
+        "gps_pos_sigma": w.FloatLogSlider(value=1.0, base=10, min=-1, max=1, step=0.05, readout_format=".2f",
+                                          description="GPS σ_p [m]", style=style, layout=layout),
+        "bias_sigma": w.FloatLogSlider(value=0.1, base=10, min=-3, max=0, step=0.1, readout_format=".3f",
+                                       description="bias prior σ [m/s²]", style=style, layout=layout),
+        "outage_on": w.Checkbox(value=True, description="GPS outage", style=style),
+        "outage": w.FloatRangeSlider(value=(12.0, 18.0), min=0.0, max=30.0, step=0.5, readout_format=".1f",
+                                     description="outage window [s]", style=style, layout=layout),
+    }

@@ -1,0 +1,1261 @@
+"""Exercise checks of the calibration notebooks: 01-07, 14 (its calibration exercises), 15, 16 and 17.
+
+Every ``check_<topic>(answer, *, settings...)`` takes the student's answer (a number, an array, a
+set of names or a function, as the exercise text says) positionally, and the exercise's settings
+as keywords only, and returns a one-line :class:`~kfcal_helpers.exercises.Feedback`.  The right
+answer is computed here from the project's model (:mod:`kfcal_helpers.calibration`) or from first
+principles, with the exercise's settings as keyword defaults; the common wrong answers are
+computed the same way.  Each exercise is one :class:`~kfcal_helpers.exercises.Exercise` record
+(id, praise, generic hint, the hint of each recognised mistake), defined right above its check;
+:data:`EXERCISES` lists them by id.
+
+A check never raises because of the answer: a placeholder (``None`` or ``...``) gives
+"not answered yet", a malformed answer (a string, a wrong shape, a function that raises)
+gives a hint.  Bad *settings* raise ``ValueError`` naming the setting.
+
+Exercise ids are ``"NN.k"``: notebook NN, exercise k.  Worked solutions are in
+``notebooks/solutions/NN_*.ipynb``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from functools import lru_cache
+
+import numpy as np
+from scipy import stats
+
+from ..consistency import chi2_bounds
+from ..exercises._core import (PLACEHOLDER, Exercise, Feedback, as_array, call_student, chi2_average_bounds,
+                               unanswered)
+from ..validation import (require_covariance, require_finite, require_instance, require_int, require_positive,
+                          require_probability)
+from .batch_estimate import batch_conditioning_covariance
+from .error_model import error_state_model, phi_power
+from .filters import covariance_sequence
+from .montecarlo import CHECK_NAMES, run_monte_carlo
+from .outages import outage_mask
+from .params import CalibrationParams
+from .simulation import acceleration, analytic_truth, integrate_left
+
+__all__ = [
+    # 01 truth model
+    "check_euler_velocity_gap", "check_euler_position_gap_max", "check_euler_truth",
+    # 02 IMU model
+    "check_imu_drift", "check_imu_random_walk", "check_imu_std_band",
+    # 03 GPS model
+    "check_gps_fix_indices", "check_gps_dz", "check_gps_rms_band",
+    # 04 error-state model
+    "check_phi_100hz", "check_gamma_100hz", "check_phi_fix_to_fix", "check_m0",
+    # 05 the filter
+    "check_predict_only", "check_first_gain", "check_second_gain",
+    # 06 Monte Carlo
+    "check_mc_nis_bounds", "check_fisher_band", "check_simultaneous_nees_band",
+    # 07 model mismatch
+    "check_apparent_bias", "check_trapezoid_velocity", "check_mismatch_failures",
+    # 14 mistakes (calibration)
+    "check_failing_checks_gps_sigma", "check_phi02_coupling_change",
+    # 15 GPS outages
+    "check_outage_mask", "check_outage_sigma",
+    # 16 minimum variance
+    "check_batch_two_fixes", "check_smoothed_bias_sigma",
+    # 17 live demo
+    "check_demo_first_fix_sigma", "check_demo_ratio_band",
+    # the records and the reference computations the notebooks and tests use
+    "EXERCISES", "first_fix_sigmas", "ratio_band",
+]
+
+
+# ----------------------------------------------------------------------------------------
+# shared helpers
+# ----------------------------------------------------------------------------------------
+def _numeric(ex: Exercise, answer, expected, wrong=(), *, rtol: float = 1e-6, atol: float = 1e-12,
+             placeholder: str = PLACEHOLDER) -> Feedback:
+    """``ex.judge`` with ``wrong`` as ``(mistake key, value)`` pairs, plus the answers judge() would
+    misread: strings, functions, non-finite numbers and transposed matrices."""
+    if unanswered(answer):
+        return ex.unanswered(placeholder)
+    if isinstance(answer, (str, bytes)) or callable(answer):
+        return ex.feedback(False, f"expected numbers, got {type(answer).__name__}")
+    e = np.asarray(expected, dtype=float)
+    a = as_array(answer)
+    if a is not None:
+        if not np.all(np.isfinite(a)):
+            return ex.feedback(False, "your answer contains NaN or inf")
+        if e.ndim == 2 and a.size == e.size and np.squeeze(a).shape != e.shape:
+            return ex.feedback(False, f"expected shape {e.shape}, got {a.shape}")
+    return ex.judge(answer, expected, [(v, k) for k, v in wrong], rtol=rtol, atol=atol, placeholder=placeholder)
+
+
+def _call_once(ex: Exercise, func, what: str, args: tuple):
+    """The student's ``func(*args)`` through :func:`call_student`: ``(output, None)`` or ``(None, Feedback)``."""
+    outs, fb = call_student(ex.id, func, [args], what)
+    return (None, fb) if fb is not None else (outs[0], None)
+
+
+def _pair(out):
+    """``out`` as two float arrays (a 2-tuple/list), or None."""
+    if isinstance(out, (str, bytes)) or not isinstance(out, (tuple, list)) or len(out) != 2:
+        return None
+    first, second = as_array(out[0]), as_array(out[1])
+    if first is None or second is None:
+        return None
+    return first, second
+
+
+def _close(a, b, rtol: float = 1e-9, atol: float = 1e-12) -> bool:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if a.size != b.size:
+        return False
+    a = a.reshape(b.shape)
+    return bool(np.all(np.isfinite(a)) and np.allclose(a, b, rtol=rtol, atol=atol))
+
+
+# ----------------------------------------------------------------------------------------
+# 01 truth model
+# ----------------------------------------------------------------------------------------
+def _velocity_gap(params: CalibrationParams, t: float) -> float:
+    j = int(round(t * params.imu_rate))
+    ts = params.t_imu[: j + 1]
+    a = acceleration(ts, params)
+    _, v = analytic_truth(ts, 0.0, 0.0, params)
+    _, v_e = integrate_left(a, 0.0, 0.0, params.dt)
+    return float(v[-1] - v_e[-1])
+
+
+_EULER_VELOCITY_GAP = Exercise(
+    "01.1",
+    praise="the Euler velocity lags the exact one by about half a step's acceleration change",
+    hint="compute v - v_E at t = 10 s for ω = 0.8 rad/s, from the two truths or from (Δt/2)(a(t) - a(0))",
+    hints={
+        "sign": "check the sign: the exercise asks for the analytic minus the Euler velocity, v - v_E",
+        "no_half": "the left sum differs from the trapezoidal rule by HALF the end-point difference: check the "
+                   "factor in front of Δt",
+        "omega": "use the exercise's ω = 0.8 rad/s, not the notebook's default 0.2 rad/s",
+        "hertz": "ω is an angular frequency in rad/s: a(t) = A sin(ωt), with no 2π",
+        "position": "that is the position formula; the velocity difference involves the acceleration a(t)",
+    },
+)
+
+
+def check_euler_velocity_gap(answer, *, omega: float = 0.8, t: float = 10.0) -> Feedback:
+    """Exercise 01.1: ``v(t) - v_E(t)`` in m/s (analytic minus Euler truth), A = 10 m/s²,
+    200 Hz, for ``omega`` (rad/s) at time ``t`` (s, on the IMU grid, 0 < t <= 30).
+
+    Accepts the exact difference or the approximation (Δt/2)(a(t) - a(0)) (rtol 5e-3).
+    """
+    omega = require_positive("omega", omega)
+    t = require_positive("t", t)
+    if t > 30.0:
+        raise ValueError(f"t must be in (0, 30] s, got {t!r}")
+    p = CalibrationParams(omega=omega)
+    dt, A = p.dt, p.A
+    approx = lambda w: dt / 2 * A * np.sin(w * t)  # noqa: E731  (a(0) = 0)
+    wrong = [("sign", -_velocity_gap(p, t)), ("no_half", 2 * approx(omega)), ("omega", approx(0.2)),
+             ("hertz", approx(2 * np.pi * omega)), ("position", dt / 2 * A / omega * (1 - np.cos(omega * t)))]
+    return _numeric(_EULER_VELOCITY_GAP, answer, _velocity_gap(p, t), wrong, rtol=5e-3)
+
+
+_EULER_POSITION_GAP_MAX = Exercise(
+    "01.2",
+    praise="the position gap peaks where 1 - cos ωt = 2, and scales like 1/ω",
+    hint="the largest |p - p_E| is (Δt/2) times the largest |v(t) - v0 - a(0)t|; find that maximum over the run",
+    hints={
+        "no_two": "1 - cos ωt reaches 2, not 1, during the run: check where |v(t) - v0| is largest",
+        "velocity": "that is the bound on the velocity difference; the position difference integrates it once more",
+        "units": "check the units: (Δt/2)(v(t) - v0) is in metres, A/ω² times Δt is not",
+        "omega": "use the exercise's ω = 0.8 rad/s, not the notebook's default 0.2 rad/s",
+        "full_dt": "the factor in front is Δt/2 (half the end-point difference), not Δt",
+    },
+)
+
+
+def check_euler_position_gap_max(answer, *, omega: float = 0.8) -> Feedback:
+    """Exercise 01.2: the largest ``|p(t) - p_E(t)|`` over the 30 s run, in m, for ``omega``
+    (rad/s; ω·30 s must exceed π so that the maximum is reached). Accepts the exact maximum
+    or the bound (Δt/2)(2A/ω) (rtol 1.5e-2)."""
+    omega = require_positive("omega", omega)
+    if omega * 30.0 <= np.pi:
+        raise ValueError(f"omega must exceed pi/30 rad/s so that the run reaches ωt = π, got {omega!r}")
+    p = CalibrationParams(omega=omega)
+    t = p.t_imu
+    pa, _ = analytic_truth(t, 0.0, 0.0, p)
+    pe, _ = integrate_left(acceleration(t, p), 0.0, 0.0, p.dt)
+    expected = float(np.max(np.abs(pa - pe)))
+    dt, A = p.dt, p.A
+    wrong = [("no_two", dt * A / (2 * omega)), ("velocity", dt * A / 2), ("units", dt * A / omega**2),
+             ("omega", dt * A / 0.2), ("full_dt", 2 * dt * A / omega)]
+    return _numeric(_EULER_POSITION_GAP_MAX, answer, expected, wrong, rtol=1.5e-2)
+
+
+#: test input of the Euler-truth exercise (m/s², m, m/s, s)
+_EULER_TEST = (np.array([0.5, -1.0, 2.0, 0.0, 3.0, -2.0, 1.5]), 1.0, 2.0, 0.1)
+
+
+def _euler_variant(a, p0, v0, dt, kind: str):
+    n = len(a)
+    p, v = np.empty(n), np.empty(n)
+    p[0], v[0] = p0, v0
+    for j in range(n - 1):
+        aj = a[j + 1] if kind == "right" else a[j]
+        v[j + 1] = v[j] + aj * dt
+        vv = v[j + 1] if kind == "new_v" else v[j]
+        acc = {"no_acc": 0.0, "dt2": aj * dt**2}.get(kind, aj * dt**2 / 2)
+        p[j + 1] = p[j] + vv * dt + acc
+    return p, v
+
+
+_EULER_TRUTH = Exercise(
+    "01.3",
+    praise="your recursion is the Euler truth (and the IMU mechanization) of the notebook",
+    hint="compare your recursion with the notebook's: v(t_{j+1}) = v(t_j) + a(t_j)Δt, p(t_{j+1}) = p(t_j) + "
+         "v(t_j)Δt + a(t_j)Δt²/2",
+    hints={
+        "new_v": "the position step uses the velocity at t_j (before the update), not v(t_{j+1})",
+        "no_acc": "the position step is missing the acceleration term a(t_j)Δt²/2",
+        "dt2": "the acceleration term of the position step is a(t_j)Δt²/2, with the 1/2 (or you used the updated "
+               "velocity without it)",
+        "right": "left Riemann: the step from t_j to t_{j+1} uses a(t_j), not a(t_{j+1})",
+        "swapped": "return (p, v) in this order: position first",
+        "length": "p and v need one entry per sample of a, starting with p[0] = p0, v[0] = v0",
+        "tuple": "return a tuple (p, v) of two arrays",
+    },
+)
+
+
+def check_euler_truth(func) -> Feedback:
+    """Exercise 01.3: ``func(a, p0, v0, dt) -> (p, v)``, the Euler (left-Riemann) truth.
+
+    Called on a 7-sample test acceleration (m/s²) with p0 = 1 m, v0 = 2 m/s, dt = 0.1 s;
+    p, v must equal :func:`~kfcal_helpers.calibration.integrate_left`, shape (7,) each.
+    """
+    ex = _EULER_TRUTH
+    a, p0, v0, dt = _EULER_TEST
+    out, fb = _call_once(ex, func, "euler_truth(a, p0, v0, dt)", (a.copy(), p0, v0, dt))
+    if fb is not None:
+        return fb
+    pair = _pair(out)
+    if pair is None:
+        return ex.mistake("tuple")
+    p, v = pair
+    if p.size != len(a) or v.size != len(a):
+        return ex.mistake("length")
+    p_ok, v_ok = integrate_left(a, p0, v0, dt)
+    if _close(p, p_ok) and _close(v, v_ok):
+        return ex.feedback(True)
+    if _close(p, v_ok) and _close(v, p_ok):
+        return ex.mistake("swapped")
+    for kind in ("right", "new_v", "no_acc", "dt2"):
+        pw, vw = _euler_variant(a, p0, v0, dt, kind)
+        if _close(p, pw) and _close(v, vw):
+            return ex.mistake(kind)
+    if _close(v, v_ok):
+        return ex.feedback(False, "v is right, p is not: " + ex.hint)
+    return ex.feedback(False)
+
+
+# ----------------------------------------------------------------------------------------
+# 02 IMU model
+# ----------------------------------------------------------------------------------------
+_IMU_DRIFT = Exercise(
+    "02.1",
+    praise="the bias drift is linear in velocity and quadratic in position",
+    hint="δv(t) = δv0 - b t and δp(t) = δp0 + δv0 t - b t²/2 (bias only, no noise): check each term",
+    hints={
+        "sign": "check the sign of the bias terms: a positive bias makes the IMU over-read, so p_c and v_c run "
+                "ahead of the truth",
+        "no_half": "the bias enters the position like a constant acceleration: t²/2, not t²",
+        "no_dv0_t": "the initial velocity error also moves the position: it adds δv0·t to δp",
+        "swapped": "give [δp, δv] in this order: position first",
+        "no_initial": "the initial errors δp0 and δv0 are still in δp and δv: the bias only adds to them",
+    },
+)
+
+
+def check_imu_drift(answer, *, b: float = 0.05, dp0: float = 2.0, dv0: float = -0.3, t: float = 20.0) -> Feedback:
+    """Exercise 02.1: bias-only dead-reckoning drift ``[δp(t), δv(t)]`` (m, m/s), shape (2,),
+    for bias ``b`` (m/s²), initial errors ``dp0`` (m), ``dv0`` (m/s), after ``t`` seconds."""
+    b, dp0, dv0 = (require_finite(n, x) for n, x in (("b", b), ("dp0", dp0), ("dv0", dv0)))
+    t = require_positive("t", t)
+    dv = dv0 - b * t
+    dp = dp0 + dv0 * t - b * t**2 / 2
+    wrong = [("sign", [dp0 + dv0 * t + b * t**2 / 2, dv0 + b * t]), ("no_half", [dp0 + dv0 * t - b * t**2, dv]),
+             ("no_dv0_t", [dp0 - b * t**2 / 2, dv]), ("swapped", [dv, dp]), ("no_initial", [-b * t**2 / 2, -b * t])]
+    return _numeric(_IMU_DRIFT, answer, [dp, dv], wrong)
+
+
+_IMU_RANDOM_WALK = Exercise(
+    "02.2",
+    praise="the random walk grows like √t in velocity and t^(3/2) in position",
+    hint="σ_v² = n W Δt² and σ_p² = W Δt⁴ Σ(m + 1/2)² with n = t/Δt steps; check Δt and n",
+    hints={
+        "variance": "these are variances: the exercise asks for standard deviations",
+        "rate": "use the exercise's IMU rate (100 Hz): Δt changes, W is per sample",
+        "no_dt": "W is a variance per sample: the velocity random walk after n steps has variance n W Δt²",
+        "linear": "independent noise samples add in variance, not in amplitude: a random walk grows like √t",
+        "swapped": "give [σ_p, σ_v] in this order: position first",
+        "no_third": "check the constant in the position variance: Σ(m + 1/2)² over m < j is about j³/3",
+    },
+)
+
+
+def check_imu_random_walk(answer, *, imu_rate: float = 100.0, W: float = 4e-4, t: float = 20.0) -> Feedback:
+    """Exercise 02.2: random-walk standard deviations ``[σ_p(t), σ_v(t)]`` (m, m/s), shape (2,),
+    of the dead reckoning for IMU noise variance ``W`` ((m/s²)² per sample) at ``imu_rate`` (Hz)
+    after ``t`` seconds. Accepts the exact σ_p or σ_p ≈ √(WΔt t³/3) (rtol 1e-4)."""
+    imu_rate, W, t = (require_positive(n, x) for n, x in (("imu_rate", imu_rate), ("W", W), ("t", t)))
+
+    def exact(dt):
+        j = t / dt
+        return np.array([np.sqrt(W * dt**4 * (j**3 / 3 - j / 12)), np.sqrt(W * dt * t)])
+
+    dt = 1.0 / imu_rate
+    right = exact(dt)
+    wrong = [("variance", right**2), ("rate", exact(0.005)), ("no_dt", [np.sqrt(W * t**3 / 3), np.sqrt(W * t)]),
+             ("linear", [np.sqrt(W) * t**2 / 2, np.sqrt(W) * t]), ("swapped", right[::-1]),
+             ("no_third", [np.sqrt(W * dt * t**3), right[1]])]
+    return _numeric(_IMU_RANDOM_WALK, answer, right, wrong, rtol=1e-4)
+
+
+_IMU_STD_BAND = Exercise(
+    "02.3",
+    praise="the sample std of n samples has n - 1 degrees of freedom",
+    hint="(n-1)s²/σ² ~ χ²_{n-1}: take the 2.5 % and 97.5 % quantiles and solve for s",
+    hints={
+        "n_dof": "the sample std subtracts the estimated mean (ddof=1): that uses up one degree of freedom",
+        "variance": "this is the band of the sample variance: the exercise asks for the standard deviation",
+        "one_sided": "a two-sided 95 % band puts α/2 = 2.5 % in each tail, not 5 %",
+        "no_divide": "(n-1)s²/σ² is χ²: divide the quantiles by the degrees of freedom before taking the root",
+    },
+)
+
+
+def check_imu_std_band(answer, *, sigma: float = 0.02, n: int = 50, alpha: float = 0.05) -> Feedback:
+    """Exercise 02.3: the two-sided ``1 - alpha`` band ``[lower, upper]`` (m/s²), shape (2,), of the
+    sample standard deviation (ddof=1) of ``n`` i.i.d. N(0, sigma²) samples."""
+    sigma = require_positive("sigma", sigma)
+    n = require_int("n", n, minimum=2)
+    alpha = require_probability("alpha", alpha)
+    right = sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha))
+    wrong = [("n_dof", sigma * np.sqrt(chi2_average_bounds(1, n, alpha))),
+             ("variance", sigma**2 * chi2_average_bounds(1, n - 1, alpha)),
+             ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, one_sided=True))),
+             ("no_divide", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, divide_by=1)))]
+    return _numeric(_IMU_STD_BAND, answer, right, wrong)
+
+
+# ----------------------------------------------------------------------------------------
+# 03 GPS model
+# ----------------------------------------------------------------------------------------
+_GPS_FIX_INDICES = Exercise(
+    "03.1",
+    praise="those are the IMU samples that carry a 4 Hz fix",
+    hint="the fixes sit on every (f_imu/f_gps)-th IMU sample, from t = 0 to t = T",
+    hints={
+        "no_last": "the last fix, at t = T, is included (n_imu = T·f_imu + 1 samples)",
+        "no_first": "the first fix is at t = 0, on IMU sample 0",
+        "times": "give IMU sample indices (integers), not times in seconds",
+        "rate": "use the exercise's GPS rate (4 Hz): the spacing is f_imu/f_gps samples",
+        "one_based": "indices start at 0 (Python), not at 1",
+    },
+)
+
+
+def check_gps_fix_indices(answer, *, gps_rate: float = 4.0) -> Feedback:
+    """Exercise 03.1: the IMU sample indices (ints, shape (n_gps,)) that carry a GPS fix for a
+    200 Hz IMU, GPS at ``gps_rate`` (Hz, dividing 200), over 30 s."""
+    p = CalibrationParams(gps_rate=require_positive("gps_rate", gps_rate))
+    right = p.fix_indices
+    r = p.steps_per_fix
+    wrong = [("no_last", right[:-1]), ("no_first", right[1:]), ("times", p.t_gps),
+             ("rate", CalibrationParams().fix_indices), ("one_based", right + 1)]
+    if r == 40:  # the exercise's rate is the default: the "rate" mistake cannot be told apart
+        wrong = [w for w in wrong if w[0] != "rate"]
+    return _numeric(_GPS_FIX_INDICES, answer, right, wrong)
+
+
+_GPS_DZ = Exercise(
+    "03.2",
+    praise="that is what the filter sees: GPS minus dead reckoning",
+    hint="δz = z - [p_c, v_c]: compare term by term",
+    hints={
+        "sign": "δz is the GPS minus the IMU dead reckoning, not the other way round",
+        "swapped": "give [δz_p, δz_v] in this order: position first",
+        "noise": "that is the GPS noise η = z - truth; the filter never sees the truth",
+        "truth": "that is H δx (truth minus IMU); the filter's measurement uses the GPS instead of the truth",
+    },
+)
+
+
+def check_gps_dz(answer, *, z=(4521.37, 103.412), p_c: float = 4518.90, v_c: float = 103.47,
+                 p: float = 4520.81, v: float = 103.45) -> Feedback:
+    """Exercise 03.2: the filter's measurement ``δz = z - [p_c, v_c]`` (m, m/s), shape (2,), for
+    the GPS fix ``z`` = [position m, velocity m/s], the dead reckoning ``p_c``, ``v_c`` and the
+    (unknown to the filter) truth ``p``, ``v``."""
+    z = np.asarray(z, dtype=float)
+    if z.shape != (2,) or not np.all(np.isfinite(z)):
+        raise ValueError(f"z must be two finite numbers [position m, velocity m/s], got {z!r}")
+    p_c, v_c, p, v = (require_finite(n, x) for n, x in (("p_c", p_c), ("v_c", v_c), ("p", p), ("v", v)))
+    imu = np.array([p_c, v_c])
+    right = z - imu
+    wrong = [("sign", -right), ("swapped", right[::-1]), ("noise", z - [p, v]), ("truth", np.array([p, v]) - imu)]
+    return _numeric(_GPS_DZ, answer, right, wrong)
+
+
+_GPS_RMS_BAND = Exercise(
+    "03.3",
+    praise="with a known mean, all n samples count as degrees of freedom",
+    hint="n·mean(η²)/σ² ~ χ²_n: take the 2.5 % and 97.5 % quantiles and solve for the rms",
+    hints={
+        "n_minus_1": "the noise mean is known (zero) and not estimated: all n degrees of freedom remain",
+        "variance": "this is the band of the mean square: the exercise asks for the rms (take square roots)",
+        "one_sided": "a two-sided 95 % band puts α/2 = 2.5 % in each tail, not 5 %",
+        "normal": "close, but that is the normal approximation: use the exact chi-square quantiles",
+    },
+)
+
+
+def check_gps_rms_band(answer, *, sigma: float = 0.04, n: int = 100, alpha: float = 0.05) -> Feedback:
+    """Exercise 03.3: the two-sided ``1 - alpha`` band ``[lower, upper]`` (m/s), shape (2,), of the
+    rms ``sqrt(mean(η²))`` of ``n`` i.i.d. N(0, sigma²) samples with known zero mean."""
+    sigma = require_positive("sigma", sigma)
+    n = require_int("n", n, minimum=2)
+    alpha = require_probability("alpha", alpha)
+    right = sigma * np.sqrt(chi2_average_bounds(1, n, alpha))
+    z = stats.norm.ppf(1 - alpha / 2)
+    wrong = [("n_minus_1", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha))),
+             ("variance", sigma**2 * chi2_average_bounds(1, n, alpha)),
+             ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n, alpha, one_sided=True))),
+             ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * n)))]
+    return _numeric(_GPS_RMS_BAND, answer, right, wrong)
+
+
+# ----------------------------------------------------------------------------------------
+# 04 error-state model
+# ----------------------------------------------------------------------------------------
+def _phi(dt: float, corner: float | None = None, signs: float = -1.0) -> np.ndarray:
+    corner = signs * dt**2 / 2 if corner is None else corner
+    return np.array([[1.0, dt, corner], [0.0, 1.0, signs * dt], [0.0, 0.0, 1.0]])
+
+
+_PHI_100HZ = Exercise(
+    "04.1",
+    praise="Φ at 100 Hz",
+    hint="write the two recursions of notebook 04 with the exercise's Δt and read off the coefficients",
+    hints={
+        "sign_corner": "check the sign of Φ[0,2]: a positive bias pulls δp down, like δv",
+        "dt_corner": "Φ[0,2] is the position effect of a constant bias over one step: Δt²/2, not Δt",
+        "signs_bias": "the bias enters with a minus sign: a positive bias makes the IMU over-read, so δp and δv "
+                      "decrease",
+        "rate": "use the exercise's IMU rate (100 Hz), so Δt changes",
+        "transposed": "Φ maps δx_j to δx_{j+1}: row i holds the coefficients of the new component i (upper "
+                      "triangular)",
+        "no_half": "the position effect of the bias over one step is Δt²/2, with the 1/2",
+    },
+)
+
+
+def check_phi_100hz(answer, *, imu_rate: float = 100.0) -> Feedback:
+    """Exercise 04.1: the transition matrix Φ (3, 3) of ``[δp, δv, b]`` for an IMU at
+    ``imu_rate`` Hz (Δt = 1/imu_rate s)."""
+    dt = 1.0 / require_positive("imu_rate", imu_rate)
+    right = error_state_model(CalibrationParams(imu_rate=imu_rate, gps_rate=imu_rate / 20)).Phi
+    wrong = [("sign_corner", _phi(dt, corner=dt**2 / 2)), ("dt_corner", _phi(dt, corner=-dt)),
+             ("signs_bias", _phi(dt, signs=1.0)), ("rate", _phi(0.005)), ("transposed", right.T),
+             ("no_half", _phi(dt, corner=-dt**2))]
+    return _numeric(_PHI_100HZ, answer, right, wrong)
+
+
+_GAMMA_100HZ = Exercise(
+    "04.2",
+    praise="Γ at 100 Hz",
+    hint="Γ holds the coefficients of w_j in the recursions of δp, δv and b",
+    hints={
+        "signs": "the noise w enters like the bias: with a minus sign (a_c = a + b + w)",
+        "dt_first": "the position effect of w over one step is Δt²/2, not Δt",
+        "no_half": "the position effect of w over one step is Δt²/2, with the 1/2",
+        "rate": "use the exercise's IMU rate (100 Hz), so Δt changes",
+        "bias_noise": "the bias is constant over a run: w does not drive it",
+    },
+)
+
+
+def check_gamma_100hz(answer, *, imu_rate: float = 100.0) -> Feedback:
+    """Exercise 04.2: the noise input vector Γ, shape (3,) (or (3, 1)), of the error-state model
+    for an IMU at ``imu_rate`` Hz."""
+    dt = 1.0 / require_positive("imu_rate", imu_rate)
+    right = error_state_model(CalibrationParams(imu_rate=imu_rate, gps_rate=imu_rate / 20)).Gamma
+    wrong = [("signs", -right), ("dt_first", [-dt, -dt, 0.0]), ("no_half", [-dt**2, -dt, 0.0]),
+             ("rate", [-0.005**2 / 2, -0.005, 0.0]), ("bias_noise", [-dt**2 / 2, -dt, 1.0])]
+    return _numeric(_GAMMA_100HZ, answer, right, wrong)
+
+
+_PHI_FIX_TO_FIX = Exercise(
+    "04.3",
+    praise="the fix-to-fix transition: a constant bias over s seconds shifts δv by -b s and δp by -b s²/2",
+    hint="Φ^k = [[1, kΔt, -(kΔt)²/2], [0, 1, -kΔt], [0, 0, 1]]; check k and Δt",
+    hints={
+        "linear": "Φ^k is not I + k(Φ - I): the bias acts on δv, which then acts on δp, so the corner grows like "
+                  "(kΔt)²/2",
+        "steps": "count the IMU steps between two fixes at the exercise's rates (100 Hz IMU, 4 Hz GPS)",
+        "rate": "use the exercise's IMU rate (100 Hz) for Δt",
+        "signs": "the bias column keeps its minus signs in every power of Φ",
+        "one_short": "from one fix to the next is f_imu/f_gps steps, not one fewer",
+    },
+)
+
+
+def check_phi_fix_to_fix(answer, *, imu_rate: float = 100.0, gps_rate: float = 4.0) -> Feedback:
+    """Exercise 04.3: the fix-to-fix transition Φ^k (3, 3), k = imu_rate/gps_rate IMU steps."""
+    p = CalibrationParams(imu_rate=require_positive("imu_rate", imu_rate),
+                          gps_rate=require_positive("gps_rate", gps_rate))
+    k, dt = p.steps_per_fix, p.dt
+    right = phi_power(p, k)
+    s = k * dt
+    wrong = [("linear", _phi(s, corner=-k * dt**2 / 2)), ("steps", phi_power(p, 40)),
+             ("rate", _phi(k * 0.005)), ("signs", _phi(s, signs=1.0)), ("one_short", phi_power(p, k - 1))]
+    if k == 40:
+        wrong = [w for w in wrong if w[0] != "steps"]
+    return _numeric(_PHI_FIX_TO_FIX, answer, right, wrong)
+
+
+_M0 = Exercise(
+    "04.4",
+    praise="M0 in the state order [δp, δv, b]",
+    hint="M0 = diag(M_p, M_v, M_b) holds the prior variances in the state order [δp, δv, b]",
+    hints={
+        "sigmas": "M0 holds variances: square the standard deviations",
+        "swapped": "the state order is [δp, δv, b]: the position variance comes first",
+        "default": "use the exercise's standard deviations, not the notebook's defaults",
+    },
+)
+
+
+def check_m0(answer, *, sigma_p: float = 5.0, sigma_v: float = 0.5, sigma_b: float = 0.05) -> Feedback:
+    """Exercise 04.4: the prior covariance M0 (3, 3) of ``[δp, δv, b]`` for prior standard
+    deviations ``sigma_p`` (m), ``sigma_v`` (m/s), ``sigma_b`` (m/s²)."""
+    s = np.array([require_positive(n, x) for n, x in (("sigma_p", sigma_p), ("sigma_v", sigma_v),
+                                                       ("sigma_b", sigma_b))])
+    right = error_state_model(CalibrationParams(p0_var=s[0]**2, v0_var=s[1]**2, bias_var=s[2]**2)).M0
+    wrong = [("sigmas", np.diag(s)), ("swapped", np.diag(s[[1, 0, 2]] ** 2)),
+             ("default", error_state_model(CalibrationParams()).M0)]
+    return _numeric(_M0, answer, right, wrong)
+
+
+# ----------------------------------------------------------------------------------------
+# 05 the filter
+# ----------------------------------------------------------------------------------------
+@lru_cache(maxsize=1)
+def _predict_test():
+    """Test input of the predict-only exercise: x (3,), a full P (3, 3), Phi, Q of the defaults, n."""
+    params = CalibrationParams()
+    m = error_state_model(params)
+    P = covariance_sequence(params)[0][params.fix_indices[10]]
+    return np.array([1.0, -0.5, 0.02]), P, m.Phi, m.Q, 40
+
+
+def _predict(x, P, Phi, Q, n, transposed=False, q=True):
+    for _ in range(n):
+        x = Phi @ x
+        P = (Phi.T @ P @ Phi if transposed else Phi @ P @ Phi.T) + (Q if q else 0.0)
+    return x, P
+
+
+_PREDICT_ONLY = Exercise(
+    "05.1",
+    praise="your predict-only loop matches filterpy's predict()",
+    hint="repeat n times: x ← Φ x, P ← Φ P Φᵀ + Q",
+    hints={
+        "no_q": "P also grows by the process noise Q at every step",
+        "transposed": "the covariance step is Φ P Φᵀ (Φ on the left), not Φᵀ P Φ",
+        "x_static": "the estimate is predicted too: x ← Φ x at every step",
+        "one_short": "your loop runs one step too few: n steps means n predictions",
+        "one_long": "your loop runs one step too many: n steps means n predictions",
+        "q_once": "Q is added at every step, not once at the end",
+        "p_static": "P must be propagated as well: P ← Φ P Φᵀ + Q at every step",
+        "tuple": "return a tuple (x, P): x of shape (3,) or (3, 1), P of shape (3, 3)",
+    },
+)
+
+
+def check_predict_only(func) -> Feedback:
+    """Exercise 05.1: ``func(x, P, Phi, Q, n) -> (x, P)`` after ``n`` predict-only steps.
+
+    Called with the defaults' Φ, Q, x = [1, -0.5, 0.02] (m, m/s, m/s²), a full P (the filter's
+    at the fix t = 2 s) and n = 40; x may come back as (3,) or (3, 1), P as (3, 3).
+    """
+    ex = _PREDICT_ONLY
+    x0, P0, Phi, Q, n = _predict_test()
+    out, fb = _call_once(ex, func, "predict_only(x, P, Phi, Q, n)", (x0.copy(), P0.copy(), Phi.copy(), Q.copy(), n))
+    if fb is not None:
+        return fb
+    pair = _pair(out)
+    if pair is None or pair[0].size != 3 or pair[1].size != 9:
+        return ex.mistake("tuple")
+    x, P = pair[0].reshape(3), pair[1].reshape(3, 3)
+    tol = dict(rtol=1e-8, atol=1e-15)
+    x_ok, P_ok = _predict(x0, P0, Phi, Q, n)
+    if _close(x, x_ok, **tol) and _close(P, P_ok, **tol):
+        return ex.feedback(True)
+    Phi_n = np.linalg.matrix_power(Phi, n)
+    variants = [("one_short", _predict(x0, P0, Phi, Q, n - 1)), ("one_long", _predict(x0, P0, Phi, Q, n + 1)),
+                ("no_q", (x_ok, _predict(x0, P0, Phi, Q, n, q=False)[1])),
+                ("transposed", (x_ok, _predict(x0, P0, Phi, Q, n, transposed=True)[1])),
+                ("q_once", (x_ok, Phi_n @ P0 @ Phi_n.T + Q)), ("p_static", (x_ok, P0)), ("x_static", (x0, P_ok))]
+    for key, (xw, Pw) in variants:
+        if _close(x, xw, **tol) and _close(P, Pw, **tol):
+            return ex.mistake(key)
+    if _close(x, x_ok, **tol):
+        return ex.feedback(False, "x is right, P is not: " + ex.hint)
+    if _close(P, P_ok, **tol):
+        return ex.feedback(False, "P is right, x is not: " + ex.hint)
+    return ex.feedback(False)
+
+
+def _gain(P, H, V):
+    return P @ H.T @ np.linalg.inv(H @ P @ H.T + V)
+
+
+_FIRST_GAIN = Exercise(
+    "05.2",
+    praise="the first gain: a diagonal prior gives a gain that ignores the bias",
+    hint="K = M0 Hᵀ (H M0 Hᵀ + V)⁻¹ with the exercise's V",
+    hints={
+        "default_v": "use the exercise's GPS noise V = diag(4, 0.01), not the notebook's",
+        "swapped": "the variances are swapped: V[0,0] is the position variance (m²), V[1,1] the velocity one ((m/s)²)",
+        "no_p_in_s": "the innovation covariance is S = H P Hᵀ + V: the prior uncertainty is in S too",
+        "no_p": "K = P Hᵀ S⁻¹: the prior covariance P multiplies Hᵀ S⁻¹",
+        "shape": "K maps a measurement (2) to a state correction (3): shape (3, 2)",
+    },
+)
+
+
+def check_first_gain(answer, *, V=((4.0, 0.0), (0.0, 0.01))) -> Feedback:
+    """Exercise 05.2: the Kalman gain K (3, 2) at the first fix (t = 0, prior M0 of the defaults)
+    for a GPS noise covariance ``V`` (2, 2) in m², (m/s)²."""
+    V = require_covariance("V", V, 2)
+    m = error_state_model(CalibrationParams())
+    M0, H = m.M0, m.H
+    right = _gain(M0, H, V)
+    wrong = [("default_v", _gain(M0, H, m.V)), ("swapped", _gain(M0, H, V[::-1, ::-1])),
+             ("no_p_in_s", M0 @ H.T @ np.linalg.inv(V)), ("no_p", H.T @ np.linalg.inv(H @ M0 @ H.T + V))]
+    if np.allclose(V, m.V):
+        wrong = wrong[1:]
+    fb = _numeric(_FIRST_GAIN, answer, right, wrong)
+    if not fb.correct and fb.answered and fb.message.startswith("expected shape"):
+        return _FIRST_GAIN.mistake("shape")
+    return fb
+
+
+_SECOND_GAIN = Exercise(
+    "05.3",
+    praise="the second gain: after 0.2 s of prediction the bias row is no longer zero",
+    hint="update M0 at t = 0, predict P to the next fix, then K = P Hᵀ (H P Hᵀ + V)⁻¹",
+    hints={
+        "one_short": "count the predictions from one fix to the next: every IMU step, the one onto the fix included",
+        "one_long": "one prediction too many: 40 IMU steps separate two fixes at 200 Hz / 5 Hz",
+        "no_q": "P grows by the process noise Q at every predict step",
+        "no_first_update": "predict from the a posteriori P of the first fix (after its update), not from M0",
+    },
+)
+
+
+def check_second_gain(answer) -> Feedback:
+    """Exercise 05.3: the Kalman gain K (3, 2) at the second fix (t = 0.2 s), defaults."""
+    params = CalibrationParams()
+    right = covariance_sequence(params)[3][1]
+    m = error_state_model(params)
+    H, V = m.H, m.V
+    K0 = _gain(m.M0, H, V)
+    I_KH = np.eye(3) - K0 @ H
+    P0 = I_KH @ m.M0 @ I_KH.T + K0 @ V @ K0.T
+    r = params.steps_per_fix
+
+    def gain_after(P, n, q=True):
+        return _gain(_predict(np.zeros(3), P, m.Phi, m.Q, n, q=q)[1], H, V)
+
+    wrong = [("one_short", gain_after(P0, r - 1)), ("one_long", gain_after(P0, r + 1)),
+             ("no_q", gain_after(P0, r, q=False)), ("no_first_update", gain_after(m.M0, r))]
+    return _numeric(_SECOND_GAIN, answer, right, wrong)
+
+
+# ----------------------------------------------------------------------------------------
+# 06 Monte Carlo
+# ----------------------------------------------------------------------------------------
+_MC_NIS_BOUNDS = Exercise(
+    "06.1",
+    praise="the NIS band for 50 runs",
+    hint="the NIS summed over N runs is χ² with (residual dimension × N) degrees of freedom: take the two-sided "
+         "quantiles, then average",
+    hints={
+        "dim3": "the NIS is a quadratic form in the 2-dimensional residual: χ² with 2N degrees of freedom",
+        "dim1": "the residual has 2 components (position and velocity): χ² with 2N degrees of freedom",
+        "one_sided": "a two-sided test at α = 0.05 takes the α/2 and 1 - α/2 quantiles",
+        "sum": "these bound the sum over runs: the exercise asks for the run average (divide by N)",
+        "n_minus_1": "the run average of N independent NIS values has 2N degrees of freedom: no N - 1 here",
+    },
+)
+
+
+def check_mc_nis_bounds(answer, *, n_runs: int = 50, alpha: float = 0.05) -> Feedback:
+    """Exercise 06.1: the two-sided ``1 - alpha`` bounds ``[lower, upper]`` (dimensionless),
+    shape (2,), of the run-averaged NIS (2-dimensional residual) over ``n_runs`` runs."""
+    N = require_int("n_runs", n_runs, minimum=2)
+    alpha = require_probability("alpha", alpha)
+    right = chi2_bounds(2, N, alpha)
+    wrong = [("dim3", chi2_average_bounds(3, N, alpha)), ("dim1", chi2_average_bounds(1, N, alpha)),
+             ("one_sided", chi2_average_bounds(2, N, alpha, one_sided=True)), ("sum", chi2_average_bounds(2, N, alpha) * N),
+             ("n_minus_1", chi2_average_bounds(2, N - 1, alpha))]
+    return _numeric(_MC_NIS_BOUNDS, answer, right, wrong)
+
+
+_FISHER_BAND = Exercise(
+    "06.2",
+    praise="Fisher's z makes the band of a correlation symmetric and of known width",
+    hint="tanh(atanh ρ ± z_{0.975}/√(N - 3))",
+    hints={
+        "sqrt_n": "the standard error of Fisher's z is 1/√(N - 3), not 1/√N",
+        "linear": "the band is symmetric in z = atanh ρ, not in ρ: transform, add ± z_q/√(N - 3), transform back",
+        "z_space": "transform the band back to a correlation with tanh",
+        "one_sided": "a two-sided 95 % band uses the 97.5 % normal quantile (1.96)",
+    },
+)
+
+
+def check_fisher_band(answer, *, rho: float = 0.8, n_runs: int = 300, alpha: float = 0.05) -> Feedback:
+    """Exercise 06.2: the two-sided ``1 - alpha`` band ``[lower, upper]`` of an ensemble
+    correlation over ``n_runs`` runs when the filter's correlation is ``rho`` (Fisher's z)."""
+    rho = require_finite("rho", rho)
+    if not -1 < rho < 1:
+        raise ValueError(f"rho must be in (-1, 1), got {rho!r}")
+    N = require_int("n_runs", n_runs, minimum=5)
+    alpha = require_probability("alpha", alpha)
+    z = stats.norm.ppf(1 - alpha / 2)
+    pm = np.array([-1.0, 1.0])
+    right = np.tanh(np.arctanh(rho) + pm * z / np.sqrt(N - 3))
+    wrong = [("sqrt_n", np.tanh(np.arctanh(rho) + pm * z / np.sqrt(N))), ("linear", rho + pm * z / np.sqrt(N - 3)),
+             ("z_space", np.arctanh(rho) + pm * z / np.sqrt(N - 3)),
+             ("one_sided", np.tanh(np.arctanh(rho) + pm * stats.norm.ppf(1 - alpha) / np.sqrt(N - 3)))]
+    return _numeric(_FISHER_BAND, answer, right, wrong)
+
+
+_SIMULTANEOUS_NEES_BAND = Exercise(
+    "06.3",
+    praise="the simultaneous band is wider: every one of the 151 fixes must pass",
+    hint="the per-entry significance is (α/7)/151 (α/7 per check, shared by its 151 fixes); then the usual "
+         "χ²_{3N}/N band",
+    hints={
+        "pointwise": "that is the pointwise band: the simultaneous one gives each check α/7, then splits that over "
+                     "the check's entries",
+        "fixes_only": "α is first split over the seven checks (α/7 each), then over the 151 fixes of the NEES check",
+        "checks_only": "α/7 is the NEES check's share; it is then split over its 151 fixes",
+        "one_sided": "each entry's two-sided band puts half of its share of α in each tail",
+        "dim2": "the NEES is a quadratic form in the 3-dimensional error: χ² with 3N degrees of freedom",
+        "sum": "these bound the SUM of the N NEES values; the check uses their run average: divide by N",
+        "dof3": "one NEES has 3 degrees of freedom, but the sum of N independent ones has 3N: use χ²_{3N}, then "
+                "divide by N",
+    },
+)
+
+
+def check_simultaneous_nees_band(answer, *, n_runs: int = 1000, n_fixes: int = 151, n_checks: int = 7,
+                                 alpha: float = 0.05) -> Feedback:
+    """Exercise 06.3: the simultaneous (Bonferroni) band ``[lower, upper]`` of the run-averaged
+    NEES at each of ``n_fixes`` fixes: ``alpha / n_checks`` per check, split equally over the
+    check's ``n_fixes`` entries (as :meth:`MonteCarloResult.checks` does)."""
+    N = require_int("n_runs", n_runs, minimum=2)
+    n_fixes = require_int("n_fixes", n_fixes, minimum=2)
+    n_checks = require_int("n_checks", n_checks, minimum=2)
+    alpha = require_probability("alpha", alpha)
+    level = alpha / (n_fixes * n_checks)
+    right = chi2_bounds(3, N, level)
+    wrong = [("pointwise", chi2_average_bounds(3, N, alpha)), ("fixes_only", chi2_average_bounds(3, N, alpha / n_fixes)),
+             ("checks_only", chi2_average_bounds(3, N, alpha / n_checks)),
+             ("one_sided", chi2_average_bounds(3, N, level, one_sided=True)),
+             ("dim2", chi2_average_bounds(2, N, level)),
+             ("sum", chi2_average_bounds(3, N, level, divide_by=1)),
+             ("dof3", chi2_average_bounds(3, N, level, dof=3, divide_by=1)),
+             ("dof3", chi2_average_bounds(3, N, level, dof=3))]
+    return _numeric(_SIMULTANEOUS_NEES_BAND, answer, right, wrong)
+
+
+# ----------------------------------------------------------------------------------------
+# 07 model mismatch
+# ----------------------------------------------------------------------------------------
+_APPARENT_BIAS = Exercise(
+    "07.1",
+    praise="the apparent bias is Δt/2 times the jerk, and grows with ω",
+    hint="the apparent bias is the rate of change of the velocity mismatch (Δt/2)(a(t) - a(0))",
+    hints={
+        "velocity": "that is the velocity mismatch itself; the apparent bias is its rate of change",
+        "hertz": "ω = 2π·0.1 rad/s here: keep the 2π",
+        "no_half": "the factor is Δt/2, from the velocity mismatch (Δt/2)(a(t) - a(0))",
+        "second_derivative": "differentiate (Δt/2)(a(t) - a(0)) once: one factor ω, not two",
+        "omega": "use the exercise's ω = 2π·0.1 rad/s, not the notebook's 0.2 rad/s",
+    },
+)
+
+
+def check_apparent_bias(answer, *, omega: float = 2 * np.pi * 0.1) -> Feedback:
+    """Exercise 07.1: the largest magnitude (m/s²) of the apparent bias (Δt/2)·da/dt that the
+    left-Riemann mismatch feeds the filter, A = 10 m/s², 200 Hz, for ``omega`` (rad/s)."""
+    omega = require_positive("omega", omega)
+    p = CalibrationParams(omega=omega)
+    dt, A = p.dt, p.A
+    right = dt / 2 * A * omega
+    wrong = [("velocity", dt / 2 * A), ("hertz", dt / 2 * A * omega / (2 * np.pi)), ("no_half", dt * A * omega),
+             ("second_derivative", dt / 2 * A * omega**2), ("omega", dt / 2 * A * 0.2)]
+    return _numeric(_APPARENT_BIAS, answer, right, wrong)
+
+
+#: test input of the trapezoid exercise (m/s², m/s, s)
+_TRAPEZOID_TEST = (np.array([0.3, 1.2, -0.7, 2.5, 0.0, -1.1, 0.8, 1.9]), 100.0, 0.005)
+
+
+_TRAPEZOID_VELOCITY = Exercise(
+    "07.2",
+    praise="the trapezoidal mechanization",
+    hint="v[0] = v0 and v[j+1] = v[j] + (Δt/2)(a_c[j] + a_c[j+1])",
+    hints={
+        "left": "that is the left Riemann sum again: the trapezoid averages a_c(t_j) and a_c(t_{j+1})",
+        "right": "that is the right Riemann sum: the trapezoid averages a_c(t_j) and a_c(t_{j+1})",
+        "no_half": "the trapezoid is Δt/2 (a_j + a_{j+1}): check the 1/2",
+        "length": "return one velocity per sample of a_c, starting with v[0] = v0",
+    },
+)
+
+
+def check_trapezoid_velocity(func) -> Feedback:
+    """Exercise 07.2: ``func(a_c, v0, dt) -> v``, the trapezoidal velocity mechanization,
+    shape (len(a_c),), v[0] = v0. Called on an 8-sample test input (m/s², m/s, s)."""
+    ex = _TRAPEZOID_VELOCITY
+    a, v0, dt = _TRAPEZOID_TEST
+    out, fb = _call_once(ex, func, "trapezoid_velocity(a_c, v0, dt)", (a.copy(), v0, dt))
+    if fb is not None:
+        return fb
+    v = as_array(out) if not isinstance(out, (str, bytes)) else None
+    if v is None:
+        return ex.feedback(False, f"expected an array of velocities, got {type(out).__name__}")
+    if v.size != len(a):
+        return ex.mistake("length")
+    steps = {"right": np.concatenate([[0.0], np.cumsum((a[:-1] + a[1:]) * dt / 2)])}
+    steps["left"] = np.concatenate([[0.0], np.cumsum(a[:-1] * dt)])
+    right_sum = np.concatenate([[0.0], np.cumsum(a[1:] * dt)])
+    no_half = np.concatenate([[0.0], np.cumsum((a[:-1] + a[1:]) * dt)])
+    if _close(v, v0 + steps["right"]):
+        return ex.feedback(True)
+    for key, w in (("left", v0 + steps["left"]), ("right", v0 + right_sum), ("no_half", v0 + no_half)):
+        if _close(v, w):
+            return ex.mistake(key)
+    return ex.feedback(False)
+
+
+@lru_cache(maxsize=4)
+def _mismatch_failures(w_factor: float, n_runs: int, seed: int) -> frozenset:
+    params = CalibrationParams()
+    m = error_state_model(params)
+    wrong_model = replace(m, W=m.W * w_factor, Q=m.Q * w_factor)
+    mc = run_monte_carlo(params, n_runs=n_runs, seed=seed, model=wrong_model)
+    return frozenset(name for name, c in mc.checks().items() if not c.passed)
+
+
+_MISMATCH_FAILURES = Exercise(
+    "07.3",
+    praise="a filter that believes its IMU is quieter than it is claims too small a P",
+    hint="run the Monte Carlo of the exercise and read the verdict column",
+    hints={
+        "mean_error": "mean_error does not fail: a wrong noise variance changes the gains, not the mean, so the "
+                      "estimate stays unbiased",
+        "orthogonality": "orthogonality does not fail here: the gain is suboptimal but the effect on the "
+                         "error-estimate correlation is too small for 1000 runs to detect",
+        "residual": "the residual checks do not fail: S = H P⁻ Hᵀ + V is dominated by the GPS noise V, which the "
+                    "filter knows exactly",
+        "missing": "something is missing: a filter that believes its IMU is quieter than it is claims too small a "
+                   "P; which checks compare the error's spread with P?",
+        "unknown": "use the names of CHECK_NAMES (kfcal_helpers.calibration.CHECK_NAMES)",
+        "type": "give a set of check names (strings), e.g. {'name_1', 'name_2'}",
+    },
+)
+
+
+def check_mismatch_failures(answer, *, w_factor: float = 0.01, n_runs: int = 1000, seed: int = 77) -> Feedback:
+    """Exercise 07.3: the set of check names (from ``CHECK_NAMES``) that fail when the filter
+    assumes an IMU noise variance ``w_factor`` times the true W, Euler truth,
+    ``run_monte_carlo(params, n_runs, seed, model=...)`` with the defaults."""
+    ex = _MISMATCH_FAILURES
+    w_factor = require_positive("w_factor", w_factor)
+    n_runs = require_int("n_runs", n_runs, minimum=2)
+    seed = require_int("seed", seed, minimum=0)
+    if unanswered(answer):
+        return ex.unanswered("replace ... with a set of check names")
+    if isinstance(answer, (str, bytes)) or not isinstance(answer, (set, frozenset, list, tuple)):
+        return ex.feedback(False, f"{ex.hints['type']}; got {type(answer).__name__}")
+    if not all(isinstance(x, str) for x in answer):
+        return ex.mistake("type")
+    names = set(answer)
+    unknown = sorted(names - set(CHECK_NAMES))
+    if unknown:
+        return ex.feedback(False, f"not a check name: {unknown[0]!r}; {ex.hints['unknown']}")
+    expected = _mismatch_failures(w_factor, n_runs, seed)
+    if names == expected:
+        return ex.feedback(True)
+    for name in sorted(names - expected):
+        key = "residual" if name.startswith("residual") or name == "nis" else name
+        if key in ex.hints:
+            return ex.mistake(key)
+        return ex.feedback(False, f"{name} does not fail: {ex.hint}")
+    return ex.mistake("missing")
+
+
+# ----------------------------------------------------------------------------------------
+# 15 GPS outages
+# ----------------------------------------------------------------------------------------
+_OUTAGE_MASK = Exercise(
+    "15.1",
+    praise="a half-open window: the fix at t_s is missing, the one at t_e is back",
+    hint="a fix at time t is missing when t_s <= t < t_e for one of the windows",
+    hints={
+        "closed": "the window is half-open, t_s <= t < t_e: the fix at t_e is the first one back",
+        "open_start": "the window is half-open, t_s <= t < t_e: the fix at t_s is already missing",
+        "inverted": "True marks a MISSING fix (as outage_mask returns), not a fix that is used",
+        "imu_rate": "one entry per GPS fix (151), not per IMU sample",
+    },
+)
+
+
+def check_outage_mask(answer, *, windows=((5.0, 7.0), (20.0, 21.5))) -> Feedback:
+    """Exercise 15.1: the bool mask (151,) of the missing GPS fixes (defaults: 5 Hz, 30 s) for
+    half-open outage ``windows`` [(start, end), ...] in seconds."""
+    params = CalibrationParams()
+    right = outage_mask(params, windows)
+    t = params.t_gps
+    closed = np.zeros(params.n_gps, bool)
+    open_start = np.zeros(params.n_gps, bool)
+    for ts, te in windows:
+        closed |= (t >= ts - 1e-9) & (t <= te + 1e-9)
+        open_start |= (t > ts + 1e-9) & (t < te - 1e-9)
+    wrong = [("closed", closed), ("open_start", open_start), ("inverted", ~right)]
+    a = as_array(answer) if not (unanswered(answer) or isinstance(answer, (str, bytes)) or callable(answer)) else None
+    if a is not None and a.size == params.n_imu:
+        return _OUTAGE_MASK.mistake("imu_rate")
+    return _numeric(_OUTAGE_MASK, answer, right.astype(float), [(k, v.astype(float)) for k, v in wrong])
+
+
+def _propagate(P0, n, q=True):
+    m = error_state_model(CalibrationParams())
+    P = np.array(P0, dtype=float)
+    for _ in range(n):
+        P = m.Phi @ P @ m.Phi.T + (m.Q if q else 0.0)
+    return P
+
+
+_OUTAGE_SIGMA = Exercise(
+    "15.2",
+    praise="the a priori σ at the first fix back",
+    hint="propagate P0 with P ← Φ P Φᵀ + Q from the last fix before the gap to the first fix back",
+    hints={
+        "from_gap_start": "the filter coasts from the last fix BEFORE the gap (t_s - 0.2 s), not from t_s",
+        "no_q": "the IMU noise keeps adding Q = W ΓΓᵀ at every step of the outage",
+        "variance": "these are variances: the exercise asks for standard deviations",
+    },
+)
+
+
+def check_outage_sigma(answer, *, P0=((0.04, 0.0, 0.0), (0.0, 1e-4, 0.0), (0.0, 0.0, 1e-6)),
+                       start: float = 10.0, end: float = 20.0) -> Feedback:
+    """Exercise 15.2: the a priori standard deviations ``[σ_p, σ_v, σ_b]`` (m, m/s, m/s²), shape (3,),
+    at the first fix back after the outage [start, end) s (defaults: 200 Hz, 5 Hz), when the
+    a posteriori P at the last fix before the gap is ``P0`` (3, 3)."""
+    P0 = require_covariance("P0", P0, 3)
+    params = CalibrationParams()
+    mask = outage_mask(params, [(start, end)], name="start/end")
+    idx = np.flatnonzero(mask)
+    if idx[0] == 0:
+        raise ValueError("start must leave a fix before the outage (start >= 0.2 s)")
+    if idx[-1] == params.n_gps - 1:
+        raise ValueError("end must leave a fix after the outage (end <= 30 s)")
+    r = params.steps_per_fix
+    n = (idx[-1] + 1 - (idx[0] - 1)) * r  # IMU steps from the last fix before to the first fix back
+    sd = lambda P: np.sqrt(np.diag(P))  # noqa: E731
+    right = sd(_propagate(P0, n))
+    wrong = [("from_gap_start", sd(_propagate(P0, n - r))), ("no_q", sd(_propagate(P0, n, q=False))),
+             ("variance", right**2)]
+    return _numeric(_OUTAGE_SIGMA, answer, right, wrong)
+
+
+# ----------------------------------------------------------------------------------------
+# 16 minimum variance
+# ----------------------------------------------------------------------------------------
+def _condition(Sxx, Sxz, Szz):
+    return Sxx - Sxz @ np.linalg.solve(Szz, Sxz.T)
+
+
+_BATCH_TWO_FIXES = Exercise(
+    "16.1",
+    praise="one Gaussian conditioning on both fixes gives the filter's P at 0.2 s",
+    hint="build Π_0, Π_1 and Cov(δx_1, δx_0) = Φ^40 Π_0, then Σ_zz (4×4), Σ_xz (3×4) and condition",
+    hints={
+        "only_last": "condition on BOTH fixes, δz_0 and δz_1 (Σ_zz is 4×4), not only on the last one",
+        "no_v": "the measurements are noisy: Σ_zz = H C Hᵀ + I ⊗ V",
+        "sign": "conditioning reduces the covariance: Σ_xx MINUS Σ_xz Σ_zz⁻¹ Σ_zx",
+        "prior": "that is the covariance before the fix at 0.2 s is used (the filter's a priori P)",
+        "unconditioned": "that is Π_1, the covariance before any conditioning",
+    },
+)
+
+
+def check_batch_two_fixes(answer) -> Feedback:
+    """Exercise 16.1: the covariance (3, 3) of δx(t_1) (t_1 = 0.2 s) given δz_0 and δz_1 by one
+    Gaussian conditioning, defaults."""
+    params = CalibrationParams()
+    m = error_state_model(params)
+    right = batch_conditioning_covariance(params, 1)
+    H, V = m.H, m.V
+    F = phi_power(params, params.steps_per_fix)
+    Pi0 = m.M0
+    Pi1 = _propagate(m.M0, params.steps_per_fix)
+    C10 = F @ Pi0
+    Sxz = np.hstack([C10 @ H.T, Pi1 @ H.T])
+    Czz = np.block([[H @ Pi0 @ H.T, H @ C10.T @ H.T], [H @ C10 @ H.T, H @ Pi1 @ H.T]])
+    wrong = [("only_last", _condition(Pi1, Pi1 @ H.T, H @ Pi1 @ H.T + V)),
+             ("sign", Pi1 + Sxz @ np.linalg.solve(Czz + np.kron(np.eye(2), V), Sxz.T)),
+             ("prior", covariance_sequence(params)[1][1]), ("unconditioned", Pi1)]
+    with np.errstate(all="ignore"):
+        try:
+            wrong.append(("no_v", _condition(Pi1, Sxz, Czz)))
+        except np.linalg.LinAlgError:  # singular without V: nobody gets that answer
+            pass
+    return _numeric(_BATCH_TWO_FIXES, answer, right, wrong, rtol=1e-5, atol=1e-12)
+
+
+_SMOOTHED_BIAS_SIGMA = Exercise(
+    "16.2",
+    praise="offline, the bias is known from t = 0 with the filter's final accuracy",
+    hint="the bias is constant with no process noise: look at how the smoothed σ_b varies over the recording in "
+         "the notebook's table",
+    hints={
+        "full_run": "the recording is 10 s long here, not 30 s",
+        "prior": "the smoother conditions on every fix of the recording, also the last one",
+        "filtered": "that is the filtered σ_b at t = 0; the smoother uses all fixes of the recording",
+        "variance": "this is a variance: the exercise asks for a standard deviation",
+    },
+)
+
+
+def check_smoothed_bias_sigma(answer, *, duration: float = 10.0) -> Feedback:
+    """Exercise 16.2: the RTS-smoothed σ_b (m/s²) at t = 0 for a recording of ``duration`` s
+    (defaults otherwise: 200 Hz, 5 Hz, a fix at every 0.2 s)."""
+    p = CalibrationParams(duration=require_positive("duration", duration))
+    P, P_prior, _, _ = covariance_sequence(p)
+    right = np.sqrt(P[-1, 2, 2])
+    full = covariance_sequence(CalibrationParams())[0][-1, 2, 2]
+    wrong = [("full_run", np.sqrt(full)), ("prior", np.sqrt(P_prior[-1, 2, 2])),
+             ("filtered", np.sqrt(P[0, 2, 2])), ("variance", right**2)]
+    if abs(p.duration - 30.0) < 1e-9:
+        wrong = wrong[1:]
+    return _numeric(_SMOOTHED_BIAS_SIGMA, answer, right, wrong, rtol=1e-6)
+
+
+# ----------------------------------------------------------------------------------------
+# 14 mistakes (the calibration exercises of notebook 14)
+# ----------------------------------------------------------------------------------------
+@lru_cache(maxsize=2)
+def _failing_checks_gps_sigma(params: CalibrationParams) -> frozenset:
+    """The checks that fail for a filter assuming a GPS position variance of 0.25 m^2
+    (1000 realizations, seed 1)."""
+    model = error_state_model(replace(params, gps_pos_var=0.25))
+    mc = run_monte_carlo(params, 1000, seed=1, model=model, progress=False)
+    return frozenset(name for name, c in mc.checks().items() if not c.passed)
+
+
+_FAILING_CHECKS_GPS_SIGMA = Exercise(
+    "14.1",
+    praise="these are exactly the checks that leave their simultaneous band",
+    hint="compare with the failing checks of your own run: 1000 realizations, seed 1, and only V[0,0] changed "
+         "(dataclasses.replace(params, gps_pos_var=0.25))",
+    hints={
+        "type": "give a set of check names, e.g. {'nees', 'nis'}",
+        "mean_error": "the mean error cannot fail here: a linear filter with zero prior means is unbiased whatever "
+                      "its gains",
+        "missing": "some failing checks are missing: list every check whose verdict is FAIL in your run, not only "
+                   "the ones you expected",
+    },
+)
+
+
+def check_failing_checks_gps_sigma(answer, *, params: CalibrationParams | None = None) -> Feedback:
+    """Exercise 14.1: the set of check names (from CHECK_NAMES) that fail when the filter assumes a
+    GPS position σ of 0.5 m (V[0,0] = 0.25 m^2) while the truth has 1 m; 1000 realizations, seed 1."""
+    ex = _FAILING_CHECKS_GPS_SIGMA
+    params = require_instance("params", params, CalibrationParams, allow_none=True) or CalibrationParams()
+    if unanswered(answer):
+        return ex.unanswered("replace ... with the set of failing check names")
+    if isinstance(answer, (str, bytes)) or not isinstance(answer, (set, frozenset, list, tuple)) \
+            or not all(isinstance(a, str) for a in answer):
+        return ex.mistake("type")
+    given = set(answer)
+    unknown = given - set(CHECK_NAMES)
+    if unknown:
+        return ex.feedback(False, f"unknown check names {sorted(unknown)}; the names are {', '.join(CHECK_NAMES)}")
+    right = _failing_checks_gps_sigma(params)
+    if given == right:
+        return ex.feedback(True)
+    if "mean_error" in given:
+        return ex.mistake("mean_error")
+    if given < right:
+        return ex.mistake("missing")
+    return ex.feedback(False)
+
+
+_PHI02_COUPLING_CHANGE = Exercise(
+    "14.2",
+    praise="the flipped sign changes the coupling by n dt^2 per fix interval",
+    hint="multiply out Phi'^k for k = 2 and k = 3 and look at how the [0,2] entry differs",
+    hints={
+        "sign": "check the sign: which of the two matrices has the larger [0,2] entry?",
+        "one_step": "that is the change over one IMU step; the fix interval has several",
+        "coupling": "that is the coupling itself over a fix interval, not its change",
+        "squared": "the per-step change adds up once per step (it enters Phi^k linearly in k)",
+    },
+)
+
+
+def check_phi02_coupling_change(answer, *, params: CalibrationParams | None = None) -> Feedback:
+    """Exercise 14.2: Phi'^40[0,2] - Phi^40[0,2] in s^2, where Phi' has Phi[0,2] = +dt^2/2 (the
+    flipped sign) and 40 is the number of IMU steps between fixes."""
+    ex = _PHI02_COUPLING_CHANGE
+    p = require_instance("params", params, CalibrationParams, allow_none=True) or CalibrationParams()
+    n, dt = p.steps_per_fix, p.dt
+    right = n * dt**2
+    wrong = [(-right, "sign"), (dt**2, "one_step"), (-(n * dt) ** 2 / 2, "coupling"), (n**2 * dt**2, "squared")]
+    return replace(ex, praise=f"the flipped sign changes the coupling by {right:.0e} s^2 per fix interval").judge(
+        answer, right, wrong, rtol=1e-6)
+
+
+# ----------------------------------------------------------------------------------------
+# 17 live demo
+# ----------------------------------------------------------------------------------------
+_RTOL_17_1 = 1e-4  # sigmas from two or three inverse variances: 4 significant digits
+_RTOL_BAND = 5e-5  # s/σ band: the N vs N-1 and normal-approximation mistakes differ by 1e-4
+
+
+def _distinct(pairs, expected, rtol):
+    """``(value, key)`` pairs without the values equal to ``expected`` (a mistake that gives the
+    right answer for these settings is not a mistake)."""
+    out = []
+    for value, key in pairs:
+        value = np.asarray(value, dtype=float)
+        if value.shape == np.shape(expected) and np.allclose(value, expected, rtol=rtol, atol=0):
+            continue
+        out.append((value, key))
+    return out
+
+
+def first_fix_sigmas(gps_pos_sigma: float, params: CalibrationParams | None = None) -> np.ndarray:
+    """[σ_p, σ_v, σ_b] (m, m/s, m/s²) a posteriori after the first fix at t = 0, with the GPS
+    position noise σ ``gps_pos_sigma`` (m) and the other parameters of ``params``."""
+    p = require_instance("params", params, CalibrationParams, allow_none=True) or CalibrationParams()
+    gps_pos_sigma = require_positive("gps_pos_sigma", gps_pos_sigma)
+    var_p = 1.0 / (1.0 / p.p0_var + 1.0 / gps_pos_sigma**2)
+    var_v = 1.0 / (1.0 / p.v0_var + 1.0 / p.gps_vel_var)
+    return np.sqrt([var_p, var_v, p.bias_var])
+
+
+_DEMO_FIRST_FIX_SIGMA = Exercise(
+    "17.1",
+    praise="inverse variances add; the bias is untouched until the prediction correlates it with v",
+    hint="combine the prior M0 and the fix's noise component by component: 1/σ² = 1/M + 1/V",
+    hints={
+        "gps_only": "the filter does not just take the GPS: the first update combines the fix with the prior "
+                    "M0 = diag(M_p, M_v, M_b)",
+        "sigma_sum": "inverse VARIANCES add when a prior and a measurement are combined, not inverse standard "
+                     "deviations",
+        "variance": "those are variances; the exercise asks for standard deviations (m, m/s, m/s²)",
+        "variance_sum": "adding variances is what happens when errors add up (prediction); combining a prior "
+                        "with a measurement adds inverse variances",
+        "prior": "that is the prior, before any fix; the first update happens at t = 0",
+        "default_gps": "use the exercise's GPS position σ (the slider value), not the default 1 m",
+        "bias": "position and velocity are right; but at t = 0 nothing links the bias to p or v yet "
+                "(M0 is diagonal), so the first fix cannot change σ_b",
+    },
+)
+
+
+def check_demo_first_fix_sigma(answer, *, gps_pos_sigma: float = 3.0) -> Feedback:
+    """Exercise 17.1: the a posteriori ``[σ_p, σ_v, σ_b]`` (m, m/s, m/s²), shape (3,), right
+    after the first fix at t = 0 when the GPS position noise has σ = ``gps_pos_sigma`` m (the
+    other parameters the defaults: M0 = diag(100, 1, 0.01), GPS velocity variance 0.0016)."""
+    ex = _DEMO_FIRST_FIX_SIGMA
+    gps_pos_sigma = require_positive("gps_pos_sigma", gps_pos_sigma)
+    p = CalibrationParams()
+    right = first_fix_sigmas(gps_pos_sigma, p)
+    if unanswered(answer):
+        return ex.unanswered()
+    prior = np.sqrt([p.p0_var, p.v0_var, p.bias_var])
+    meas = np.array([gps_pos_sigma, np.sqrt(p.gps_vel_var), np.sqrt(p.bias_var)])
+    pairs = [
+        (meas, "gps_only"),
+        (np.r_[1 / (1 / prior[:2] + 1 / meas[:2]), prior[2]], "sigma_sum"),
+        (right**2, "variance"),
+        (np.r_[np.sqrt(prior[:2] ** 2 + meas[:2] ** 2), prior[2]], "variance_sum"),
+        (prior, "prior"),
+        (first_fix_sigmas(np.sqrt(p.gps_pos_var), p), "default_gps"),
+    ]
+    a = as_array(answer)
+    if (a is not None and a.size == 3 and np.all(np.isfinite(a))
+            and np.allclose(a.ravel()[:2], right[:2], rtol=_RTOL_17_1, atol=0)
+            and not np.isclose(a.ravel()[2], right[2], rtol=_RTOL_17_1, atol=0)):
+        return ex.mistake("bias")
+    return ex.judge(answer, right, _distinct(pairs, right, _RTOL_17_1), rtol=_RTOL_17_1, atol=0.0)
+
+
+def ratio_band(n_runs: int, alpha: float = 0.05) -> np.ndarray:
+    """[lower, upper] of s/σ for the std ``s`` (ddof 1) of ``n_runs`` Gaussian samples of std σ."""
+    n = require_int("n_runs", n_runs, minimum=2) - 1
+    alpha = require_probability("alpha", alpha)
+    return np.sqrt(stats.chi2.ppf([alpha / 2, 1 - alpha / 2], n) / n)
+
+
+_DEMO_RATIO_BAND = Exercise(
+    "17.2",
+    praise="(N-1) s²/σ² ~ χ²(N-1): square roots of the scaled quantiles",
+    hint="start from (N-1) s²/σ² ~ χ²(N-1) and solve for s/σ",
+    hints={
+        "n_dof": "the ensemble std s uses the ensemble mean (ddof = 1): (N-1) s²/σ² has N-1 degrees of freedom, "
+                 "not N",
+        "variance": "that is the band of s²/σ²; the demo compares the std s with σ, so take square roots",
+        "one_sided": "a two-sided band at α = 0.05 puts α/2 = 0.025 in each tail",
+        "normal": "close: that is the normal approximation 1 ± 1.96/√(2(N-1)); the exact band uses "
+                  "chi-square quantiles",
+        "mean_band": "1 ± 1.96/√N is the band of a MEAN of unit-variance numbers; s/σ is a ratio of "
+                     "standard deviations: (N-1) s²/σ² is chi-square",
+    },
+)
+
+
+def check_demo_ratio_band(answer, *, n_runs: int = 200, alpha: float = 0.05) -> Feedback:
+    """Exercise 17.2: the two-sided ``1 - alpha`` band ``[lower, upper]`` (dimensionless),
+    shape (2,), of the ratio s/σ of the ensemble std (``n_runs`` realizations) to the filter's σ."""
+    N = require_int("n_runs", n_runs, minimum=3)
+    alpha = require_probability("alpha", alpha)
+    ex = replace(_DEMO_RATIO_BAND, praise=f"(N-1) s²/σ² ~ χ²(N-1) with N = {N}: square roots of the scaled quantiles")
+    right = ratio_band(N, alpha)
+    z = stats.norm.ppf(1 - alpha / 2)
+    pm = np.array([-1.0, 1.0])
+    pairs = [
+        (ratio_band(N + 1, alpha), "n_dof"),
+        (right**2, "variance"),
+        (np.sqrt(stats.chi2.ppf([alpha, 1 - alpha], N - 1) / (N - 1)), "one_sided"),
+        (1 + pm * z / np.sqrt(2 * (N - 1)), "normal"),
+        (1 + pm * z / np.sqrt(N), "mean_band"),
+    ]
+    return ex.judge(answer, right, _distinct(pairs, right, _RTOL_BAND), rtol=_RTOL_BAND, atol=0.0)
+
+
+#: every exercise record of the calibration notebooks, by id
+EXERCISES = {ex.id: ex for ex in (
+    _EULER_VELOCITY_GAP, _EULER_POSITION_GAP_MAX, _EULER_TRUTH, _IMU_DRIFT, _IMU_RANDOM_WALK, _IMU_STD_BAND,
+    _GPS_FIX_INDICES, _GPS_DZ, _GPS_RMS_BAND, _PHI_100HZ, _GAMMA_100HZ, _PHI_FIX_TO_FIX, _M0, _PREDICT_ONLY,
+    _FIRST_GAIN, _SECOND_GAIN, _MC_NIS_BOUNDS, _FISHER_BAND, _SIMULTANEOUS_NEES_BAND, _APPARENT_BIAS,
+    _TRAPEZOID_VELOCITY, _MISMATCH_FAILURES, _FAILING_CHECKS_GPS_SIGMA, _PHI02_COUPLING_CHANGE, _OUTAGE_MASK,
+    _OUTAGE_SIGMA, _BATCH_TWO_FIXES, _SMOOTHED_BIAS_SIGMA, _DEMO_FIRST_FIX_SIGMA, _DEMO_RATIO_BAND)}

@@ -1,0 +1,320 @@
+"""The calibration lecture demo (notebook 17): the compute function against the filters by other
+routes, the figure and the controls, the live demo over a grid of controls, and the exercise checks."""
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+from scipy import stats
+
+from kfcal_helpers.calibration import (CalibrationParams, batch_filter, covariance_sequence, error_state_model,
+                                       outage_mask, run_filterpy, simulate)
+from kfcal_helpers.calibration.demos import (LIVE_FIGSIZE, CalibrationDemo, CalibrationDemoFigure,
+                                             calibration_controls, compute_calibration_demo, draw_calibration_demo,
+                                             valid_gps_rates)
+from kfcal_helpers.calibration.engine import (estimate_between_fixes, filter_errors_at_fixes, noise_of_simulation,
+                                              sample_noise_at_fixes)
+from kfcal_helpers.calibration.exercises import EXERCISES, check_demo_first_fix_sigma, check_demo_ratio_band
+from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
+
+P = CalibrationParams()
+HINTS = {i: EXERCISES[i].hints for i in ("17.1", "17.2")}
+
+
+def test_valid_gps_rates_divide_the_imu_rate():
+    assert valid_gps_rates() == tuple(float(r) for r in range(1, 26) if 200 % r == 0)
+    for r in valid_gps_rates(max_rate=200.0):
+        assert CalibrationParams(gps_rate=r).steps_per_fix * r == 200
+    assert valid_gps_rates(100.0, 100.0)[-1] == 100.0
+    with pytest.raises(ValueError, match="imu_rate"):
+        valid_gps_rates(200.5)
+
+
+def test_demo_sigma_is_the_filters_and_its_realization_is_filterpys():
+    demo = compute_calibration_demo(gps_rate=4.0, W=1e-3, gps_pos_var=2.0, bias_var=0.02, outage=(9.0, 14.0), seed=3)
+    p = P.replace(gps_rate=4.0, W=1e-3, gps_pos_var=2.0, bias_var=0.02)
+    missing = outage_mask(p, [(9.0, 14.0)])
+    assert np.array_equal(demo.missing, missing)
+    P_seq, P_prior, _, _ = covariance_sequence(p, missing)
+    assert np.allclose(demo.sigma, np.sqrt(np.einsum("jaa->ja", P_seq)), rtol=1e-9, atol=0)
+    assert np.allclose(demo.P_post, P_seq[p.fix_indices], rtol=1e-9, atol=0)
+    assert np.allclose(demo.P_prior, P_prior, rtol=1e-9, atol=0)
+    # the drawn realization: the demo's first seeded stream, filtered by filterpy instead
+    rng = np.random.default_rng(np.random.SeedSequence(3).spawn(2)[0])
+    sim = simulate(p, 1, rng, missing_fixes=missing)
+    fp = run_filterpy(p, sim.dz[0])
+    assert np.allclose(demo.error, sim.dx[0] - fp.x, rtol=0, atol=1e-8)
+
+
+def test_estimate_between_fixes_is_batch_full_rate():
+    sim = simulate(P, 4, np.random.default_rng(0))
+    full = batch_filter(P, sim.dz, full_rate=True)
+    assert np.allclose(estimate_between_fixes(P, full.x_post), full.x, rtol=0, atol=1e-9)
+    assert np.allclose(estimate_between_fixes(P, full.x_post[2]), full.x[2], rtol=0, atol=1e-9)
+    with pytest.raises(ValueError, match="x_post"):
+        estimate_between_fixes(P, np.zeros((10, 3)))
+
+
+def test_error_recursion_is_batch_filter_on_the_same_draws():
+    p = P.replace(gps_rate=4.0)
+    missing = outage_mask(p, [(5.0, 9.0)])
+    sim = simulate(p, 6, np.random.default_rng(1), missing_fixes=missing)
+    cov = covariance_sequence(p, missing)
+    fr = batch_filter(p, sim.dz, full_rate=False, covariances=cov)
+    e_prior, e_post = filter_errors_at_fixes(p, cov, *noise_of_simulation(sim))
+    assert np.allclose(e_prior, sim.dx_at_fixes - fr.x_prior, rtol=0, atol=1e-9)
+    assert np.allclose(e_post, sim.dx_at_fixes - fr.x_post, rtol=0, atol=1e-9)
+    e0, w, eta = noise_of_simulation(sim)
+    with pytest.raises(ValueError, match="eta"):
+        filter_errors_at_fixes(p, cov, e0, w, eta[:, :-1])
+    with pytest.raises(ValueError, match="sim"):
+        noise_of_simulation(sim.dz)
+
+
+def test_noise_at_fixes_follows_the_error_model():
+    p = P.replace(gps_rate=2.0, W=4e-3)
+    n = 3000
+    e0, w, eta = sample_noise_at_fixes(p, n, np.random.default_rng(5))
+    assert e0.shape == (n, 3) and w.shape == (n, p.n_gps - 1, 3) and eta.shape == (n, p.n_gps, 2)
+    m = error_state_model(p)
+    # Q_r by r predict steps from zero: the covariance of the IMU noise summed between fixes
+    Q_r = np.zeros((3, 3))
+    for _ in range(p.steps_per_fix):
+        Q_r = m.Phi @ Q_r @ m.Phi.T + m.Q
+    assert np.all(w[..., 2] == 0.0)  # the bias has no process noise
+    w2 = w[..., :2].reshape(-1, 2)
+    assert np.allclose(w2.T @ w2 / len(w2), Q_r[:2, :2], rtol=0.02, atol=0)
+    lo, hi = stats.chi2.ppf([1e-4, 1 - 1e-4], n - 1) / (n - 1)
+    for got, want in ((e0.var(axis=0, ddof=1), np.diag(m.M0)), (eta[:, 7].var(axis=0, ddof=1), np.diag(m.V))):
+        assert np.all((got / want > lo) & (got / want < hi))
+    # the same draws read off a (shorter) 200 Hz simulation have the same covariance
+    sim = simulate(p.replace(duration=10.0), 2000, np.random.default_rng(6))
+    ws = noise_of_simulation(sim)[1][..., :2].reshape(-1, 2)
+    assert np.allclose(ws.T @ ws / len(ws), Q_r[:2, :2], rtol=0.03, atol=0)
+
+
+@pytest.mark.parametrize("ensemble", ["fixes", "simulate"])
+def test_ensemble_sigma_within_its_chi2_band(ensemble):
+    demo = compute_calibration_demo(outage=(10.0, 16.0), n_runs=300, seed=11, ensemble=ensemble)
+    N = demo.n_runs
+    assert demo.ratio_band == pytest.approx(np.sqrt(stats.chi2.ppf([0.025, 0.975], N - 1) / (N - 1)), rel=1e-12)
+    # simultaneous (Bonferroni) band over all fixes and states: a right P passes with probability >= 0.95
+    level = 0.05 / demo.ratio.size
+    lo, hi = np.sqrt(stats.chi2.ppf([level / 2, 1 - level / 2], N - 1) / (N - 1))
+    assert np.all((demo.ratio > lo) & (demo.ratio < hi))
+    z = stats.norm.ppf(1 - level / 2)
+    assert np.all(np.abs(demo.ens_mean) < z * demo.ens_std / np.sqrt(N))
+    assert 0.8 < demo.inside_fraction <= 1.0
+
+
+def test_outage_grows_sigma_and_the_first_fix_back_cuts_it():
+    demo = compute_calibration_demo(outage=(12.0, 18.0))
+    clear = compute_calibration_demo()
+    j0, j1 = int(12.0 * P.imu_rate) - P.steps_per_fix, int(18.0 * P.imu_rate)  # last fix before, first fix back
+    s = demo.sigma
+    assert np.all(np.diff(s[j0:j1, 0]) > 0) and np.all(np.diff(s[j0:j1, 1]) > 0)
+    assert np.allclose(s[j0:j1, 2], s[j0, 2], rtol=1e-12)  # nothing drives the bias in the gap
+    assert s[j1, 0] < s[j1 - 1, 0] and s[j1, 1] < s[j1 - 1, 1]
+    assert np.all(s[j0 + 1:j1 + 1] >= clear.sigma[j0 + 1:j1 + 1] - 1e-15)
+    assert s[j1 - 1, 0] > 1.2 * clear.sigma[j1 - 1, 0]
+
+
+def test_slider_effects_go_the_stated_way():
+    slow, fast = compute_calibration_demo(gps_rate=1.0), compute_calibration_demo(gps_rate=25.0)
+    saw = [np.sqrt(d.P_prior[:, 1, 1] / d.P_post[:, 1, 1])[np.searchsorted(d.t_gps, 2.0 - 1e-9)] for d in (slow, fast)]
+    assert saw[0] > saw[1] > 1.0
+    low_w, high_w = compute_calibration_demo(W=4e-5), compute_calibration_demo(W=4e-3)
+    assert high_w.sigma[-1, 2] > low_w.sigma[-1, 2]
+    assert np.all(np.diff(high_w.sigma_fix[:, 2]) < 0)  # still shrinking: no floor
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    ({"gps_rate": 3.0}, "gps_rate"), ({"W": -1.0}, "W"), ({"gps_pos_var": 0.0}, "gps_pos_var"),
+    ({"bias_var": np.nan}, "bias_var"), ({"outage": (20.0, 10.0)}, "outage"), ({"outage": (25.0, 40.0)}, "outage"),
+    ({"outage": 5.0}, "outage"), ({"n_runs": 1}, "n_runs"), ({"seed": -1}, "seed"), ({"ensemble": "mc"}, "ensemble"),
+    ({"alpha": 1.5}, "alpha"), ({"base": "defaults"}, "base"),
+])
+def test_compute_calibration_demo_validates(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        compute_calibration_demo(**kwargs)
+
+
+def test_calibration_figure_updates_in_place():
+    view = CalibrationDemoFigure(Figure(figsize=(9, 7.2)))
+    assert len(view.fig.axes) == 3
+    lines = [tuple(ax.lines) for ax in view.axes]
+    view.update(compute_calibration_demo(outage=(12.0, 18.0), n_runs=50))
+    view.update(compute_calibration_demo(gps_rate=2.0, outage=(5.0, 8.0), n_runs=50))
+    assert [tuple(ax.lines) for ax in view.axes] == lines  # the same artists, new data
+    assert len(view.spans) == 3 and len(view.axes[0].patches) == 1
+    assert view.axes[0].lines[0].get_xdata().size == P.n_imu
+    assert "GPS 2 Hz" in view.axes[0].get_title() and "outage 5–8 s" in view.axes[0].get_title()
+    for ax in view.axes:
+        assert "[" in ax.get_ylabel()
+    assert "[s]" in view.axes[-1].get_xlabel()
+    png = figure_png(view.fig)
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    fig = draw_calibration_demo(compute_calibration_demo(n_runs=20))
+    assert len(fig.axes) == 3 and "GPS 5 Hz" in fig.axes[0].get_title()
+    with pytest.raises(ValueError, match="demo"):
+        view.update("demo")
+    with pytest.raises(ValueError, match="figure"):
+        CalibrationDemoFigure(figure="fig")
+
+
+def test_calibration_controls_match_the_compute_function():
+    c = calibration_controls()
+    assert set(c) == {"gps_rate", "W", "gps_pos_sigma", "bias_sigma", "outage_on", "outage"}
+    assert tuple(c["gps_rate"].options) == valid_gps_rates()
+    v = {k: w.value for k, w in c.items()}
+    assert (v["gps_rate"], v["W"], v["gps_pos_sigma"] ** 2, v["bias_sigma"] ** 2) == (P.gps_rate, P.W, P.gps_pos_var,
+                                                                                      pytest.approx(P.bias_var))
+
+
+
+# ---------------------------------------------------------------------------
+# exercise checks
+def _rejected(fb, exercise, key):
+    return (not fb.correct) and fb.answered and fb.message == HINTS[exercise][key]
+
+
+def test_check_17_1_first_fix_sigma():
+    right = np.sqrt([1 / (1 / 100 + 1 / 9), 1 / (1 / 1 + 1 / 0.0016), 0.01])  # default M0, V with sigma_p = 3 m
+    assert check_demo_first_fix_sigma(right).correct
+    assert check_demo_first_fix_sigma(list(right)).correct
+    demo = compute_calibration_demo(gps_pos_var=9.0, n_runs=10)
+    assert np.allclose(demo.sigma[0], right, rtol=1e-12)  # what the slider shows
+    wrong = {
+        "gps_only": [3.0, 0.04, 0.1],
+        "sigma_sum": [1 / (1 / 10 + 1 / 3), 1 / (1 + 1 / 0.04), 0.1],
+        "variance": right**2,
+        "variance_sum": [np.sqrt(109), np.sqrt(1.0016), 0.1],
+        "prior": [10.0, 1.0, 0.1],
+        "default_gps": np.sqrt([1 / (1 / 100 + 1), 1 / (1 + 1 / 0.0016), 0.01]),
+        "bias": [right[0], right[1], 0.05],
+    }
+    for key, value in wrong.items():
+        assert _rejected(check_demo_first_fix_sigma(value), "17.1", key), key
+    assert not check_demo_first_fix_sigma(...).answered
+    for bad in ("2.87", [1.0, 2.0], None):
+        fb = check_demo_first_fix_sigma(bad)
+        assert not fb.correct
+    assert check_demo_first_fix_sigma(np.sqrt([1 / (1 / 100 + 1 / 4), 1 / (1 + 625), 0.01]), gps_pos_sigma=2.0).correct
+    with pytest.raises(ValueError, match="gps_pos_sigma"):
+        check_demo_first_fix_sigma(right, gps_pos_sigma=0.0)
+
+
+def test_check_17_2_ratio_band():
+    N = 200
+    right = np.sqrt(stats.chi2.ppf([0.025, 0.975], N - 1) / (N - 1))
+    assert check_demo_ratio_band(right).correct and check_demo_ratio_band(np.round(right, 5)).correct
+    demo = compute_calibration_demo(n_runs=N)
+    assert np.allclose(demo.ratio_band, right, rtol=1e-12)
+    wrong = {
+        "n_dof": np.sqrt(stats.chi2.ppf([0.025, 0.975], N) / N),
+        "variance": stats.chi2.ppf([0.025, 0.975], N - 1) / (N - 1),
+        "one_sided": np.sqrt(stats.chi2.ppf([0.05, 0.95], N - 1) / (N - 1)),
+        "normal": 1 + np.array([-1, 1]) * 1.959964 / np.sqrt(2 * (N - 1)),
+        "mean_band": 1 + np.array([-1, 1]) * 1.959964 / np.sqrt(N),
+    }
+    for key, value in wrong.items():
+        assert _rejected(check_demo_ratio_band(value), "17.2", key), key
+    assert not check_demo_ratio_band(...).answered and not check_demo_ratio_band([0.9]).correct
+    with pytest.raises(ValueError, match="n_runs"):
+        check_demo_ratio_band(right, n_runs=1)
+
+
+
+# ---------------------------------------------------------------------------
+# live demo
+def test_draw_calibration_demo_rejects_a_negative_t_zoom():
+    demo = compute_calibration_demo(n_runs=20)
+    for bad in (-1, -0.5, float("nan"), "2"):
+        with pytest.raises(ValueError, match="t_zoom"):
+            draw_calibration_demo(demo, t_zoom=bad)
+    assert len(draw_calibration_demo(demo, t_zoom=0.0).axes) == 3
+
+
+def calibration_demo_for(gps_rate=5.0, W=4e-4, gps_pos_sigma=1.0, bias_sigma=0.1, outage_on=True,
+                         outage=(12.0, 18.0)):
+    """Notebook 17's mapping of the controls to compute_calibration_demo."""
+    window = outage if outage_on and outage[0] < outage[1] else None
+    return compute_calibration_demo(gps_rate=gps_rate, W=W, gps_pos_var=gps_pos_sigma**2, bias_var=bias_sigma**2,
+                                    outage=window, n_runs=200, seed=17)
+
+
+def _png_size(png):
+    from PIL import Image
+    import io
+
+    return Image.open(io.BytesIO(png)).size
+
+
+def test_live_demo_validates():
+    with pytest.raises(ValueError, match="controls"):
+        LiveDemo({}, calibration_demo_for, CalibrationDemoFigure(Figure()))
+    with pytest.raises(ValueError, match="compute"):
+        LiveDemo(calibration_controls(), None, CalibrationDemoFigure(Figure()))
+    with pytest.raises(ValueError, match="view"):
+        LiveDemo(calibration_controls(), calibration_demo_for, Figure())
+
+
+def test_demo_declares_its_finite_fields():
+    demo = compute_calibration_demo(n_runs=20)
+    assert CalibrationDemo.finite_fields == ("error", "sigma", "ens_std", "P_post")
+    assert all(np.all(np.isfinite(getattr(demo, name))) for name in CalibrationDemo.finite_fields)
+    import dataclasses
+
+    assert "finite_fields" not in {f.name for f in dataclasses.fields(CalibrationDemo)}  # a class attribute
+
+
+def test_calibration_live_demo_non_finite_result_draws_a_message():
+    import dataclasses
+
+    live = LiveDemo(calibration_controls(), calibration_demo_for,
+                    CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE)))
+    assert not live.failed
+
+    def nan_sigma(**values):
+        d = calibration_demo_for(**values)
+        return dataclasses.replace(d, sigma=np.full_like(d.sigma, np.nan))
+
+    live.compute = nan_sigma
+    live.refresh()
+    assert live.failed and "not finite" in live.line.value and "sigma" in live.line.value
+
+
+def test_describe_calibration_controls():
+    assert describe_controls(calibration_controls()) == ("GPS rate [Hz] 5; IMU noise W [(m/s²)²] 0.0004; GPS σ_p [m] 1; "
+                                                         "bias prior σ [m/s²] 0.1; outage window [s] 12–18; on: GPS outage")
+
+
+def _check_render(live, values):
+    """One redraw of the grid: never raises or warns; the title matches what is drawn."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        png, line, ok = live.render(**values)
+    assert png[:4] == b"\x89PNG" and "\n" not in line
+    assert _png_size(png) == tuple(round(s * live.view.fig.dpi) for s in live.view.fig.get_size_inches())
+    if not ok:
+        assert describe_controls(live.controls, values) in live.message_fig.get_suptitle()
+    return ok
+
+
+def test_calibration_demo_over_a_grid_of_controls():
+    live = LiveDemo(calibration_controls(), calibration_demo_for,
+                    CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE)))
+    c = live.controls
+    corners = [{"W": c["W"].min, "gps_pos_sigma": c["gps_pos_sigma"].min, "bias_sigma": c["bias_sigma"].min},
+               {"W": c["W"].max, "gps_pos_sigma": c["gps_pos_sigma"].max, "bias_sigma": c["bias_sigma"].max}]
+    outages = [(False, (12.0, 18.0)), (True, (0.0, 30.0)), (True, (0.0, 0.5)), (True, (29.5, 30.0)),
+               (True, (10.0, 10.0))]
+    for rate in (c["gps_rate"].options[0], c["gps_rate"].options[-1]):
+        for corner in corners:
+            for on, window in outages:
+                values = {"gps_rate": rate, **{k: 10.0 ** v for k, v in corner.items()}, "outage_on": on,
+                          "outage": window}
+                if _check_render(live, values):
+                    title = live.view.axes[0].get_title()
+                    assert f"GPS {rate:g} Hz" in title and (("outage" in title) == (on and window[0] < window[1]))
