@@ -153,6 +153,17 @@ def _call(exercise: Exercise, fn, cases, out_shape: tuple, what: str, size_hint:
     return arrays, None
 
 
+def _wrapped(answer, expected, wrap):
+    """``(answer with its angles wrapped by wrap, unwrapped)``: ``unwrapped`` is True when only the
+    wrapping was missing (the wrapped answer is right, the answer as given is not)."""
+    flat = _finite_of_size(answer, np.size(expected))
+    if flat is None:
+        return answer, False
+    wrapped = wrap(flat)
+    right = matches(wrapped, expected, _NUM_RTOL, _NUM_ATOL) and not matches(flat, expected, _NUM_RTOL, _NUM_ATOL)
+    return wrapped, right
+
+
 def _pi_for_minus_pi(values, idx=None):
     """Copy of ``values`` with entries equal to -pi (to rounding) replaced by pi: both are
     the same angle, and (-pi, pi] vs [-pi, pi) is a convention, not a mistake."""
@@ -218,12 +229,9 @@ def check_step_map(answer, *, x=STEP_X, u=STEP_U, dt: float = STEP_DT, L: float 
     a = as_array(answer)
     if not unanswered(answer) and a is not None and a.size == N_STATES and not np.all(np.isfinite(a)):
         return E.mistake("nan")
-    flat = _finite_of_size(answer, N_STATES)
-    if flat is not None:
-        wrapped = wrap_state(flat)
-        if matches(wrapped, expected, _NUM_RTOL, _NUM_ATOL) and not matches(flat, expected, _NUM_RTOL, _NUM_ATOL):
-            return E.mistake("wrap")
-        answer = wrapped
+    answer, unwrapped = _wrapped(answer, expected, wrap_state)
+    if unwrapped:
+        return E.mistake("wrap")
     wrong = [
         (wrap_state(x + dt * dynamics(x, u, L)), "euler"),
         (_arc_variant(x, u, dt, L, heading="start"), "start_heading"),
@@ -285,12 +293,9 @@ def check_measurement(answer, *, x=MEAS_X) -> Feedback:
     x = require_shape("x", x, (N_STATES,))
     E = MEASUREMENT
     expected = measure(x)
-    flat = _finite_of_size(answer, N_MEAS)
-    if flat is not None:
-        wrapped = wrap_measurement(flat)
-        if matches(wrapped, expected, _NUM_RTOL, _NUM_ATOL) and not matches(flat, expected, _NUM_RTOL, _NUM_ATOL):
-            return E.mistake("wrap")
-        answer = wrapped
+    answer, unwrapped = _wrapped(answer, expected, wrap_measurement)
+    if unwrapped:
+        return E.mistake("wrap")
     wrong = [(_measure_variant(x, m), m) for m in
              ("atan2_order", "atan", "no_heading", "heading_sign", "same_direction", "range_squared", "ugv_gps")]
     return E.judge(answer, expected, wrong, rtol=_NUM_RTOL, atol=_NUM_ATOL)

@@ -47,6 +47,7 @@ from .model import (
     arc,
     jacobian_A,
     nominal_trajectory,
+    require_indices,
     require_last_axis,
 )
 
@@ -189,18 +190,8 @@ def measurement_subset(measurements) -> tuple[int, ...] | None:
     4 UAV GPS north).  Returns None for all five, else the sorted tuple; ValueError otherwise."""
     if measurements is None:
         return None
-    allowed = ("measurements must be a non-empty sequence of distinct integers in 0..4 (rows of y: "
-               "0 bearing UGV->UAV, 1 range, 2 bearing UAV->UGV, 3 UAV GPS east, 4 UAV GPS north)")
-    if isinstance(measurements, (str, bytes)):
-        raise ValueError(f"{allowed}, got {measurements!r}")
-    try:
-        items = list(measurements)
-    except TypeError:
-        raise ValueError(f"{allowed}, got {measurements!r}") from None
-    ok = all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < N_MEAS for i in items)
-    if not items or not ok or len({int(i) for i in items}) != len(items):
-        raise ValueError(f"{allowed}, got {measurements!r}")
-    idx = tuple(sorted(int(i) for i in items))
+    idx = require_indices("measurements", measurements, N_MEAS,
+                          " (rows of y: 0 bearing UGV->UAV, 1 range, 2 bearing UAV->UGV, 3 UAV GPS east, 4 UAV GPS north)")
     return None if idx == tuple(range(N_MEAS)) else idx
 
 

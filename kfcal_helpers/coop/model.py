@@ -29,6 +29,7 @@ __all__ = [
     "StateDescriptor",
     "STATE",
     "MeasurementModel",
+    "require_indices",
     "MEAS_LABELS",
     "NOISE_MODELS",
     "CoopParams",
@@ -438,6 +439,22 @@ def jacobian_C(x) -> np.ndarray:
     return C
 
 
+def require_indices(name: str, value, n: int, what: str = "") -> tuple[int, ...]:
+    """``value`` as a sorted tuple of distinct integers in 0..n-1 (a non-empty sequence, in any order);
+    ValueError naming ``name`` (and ``what`` they index, if given) otherwise."""
+    allowed = f"{name} must be a non-empty sequence of distinct integers in 0..{n - 1}{what}"
+    if isinstance(value, (str, bytes)):
+        raise ValueError(f"{allowed}, got {value!r}")
+    try:
+        items = list(value)
+    except TypeError:
+        raise ValueError(f"{allowed}, got {value!r}") from None
+    ok = all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < n for i in items)
+    if not items or not ok or len({int(i) for i in items}) != len(items):
+        raise ValueError(f"{allowed}, got {value!r}")
+    return tuple(sorted(int(i) for i in items))
+
+
 @dataclass(frozen=True, eq=False)
 class MeasurementModel:
     """The measurement model of a filter: ``h``, its Jacobian, which components are bearings, and ``R``.
@@ -487,17 +504,7 @@ class MeasurementModel:
     def subset(self, idx) -> "MeasurementModel":
         """The model of the components ``idx`` (positions in this model's ``rows``, e.g. ``(0, 1, 2)``
         for the two bearings and the range of the full model); ValueError if malformed."""
-        allowed = f"idx must be a non-empty sequence of distinct integers in 0..{self.dim - 1}"
-        if isinstance(idx, (str, bytes)):
-            raise ValueError(f"{allowed}, got {idx!r}")
-        try:
-            items = list(idx)
-        except TypeError:
-            raise ValueError(f"{allowed}, got {idx!r}") from None
-        ok = all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < self.dim for i in items)
-        if not items or not ok or len({int(i) for i in items}) != len(items):
-            raise ValueError(f"{allowed}, got {idx!r}")
-        idx = sorted(int(i) for i in items)
+        idx = list(require_indices("idx", idx, self.dim))
         return MeasurementModel(self.R[np.ix_(idx, idx)], tuple(self.rows[i] for i in idx))
 
     def h(self, x) -> np.ndarray:
