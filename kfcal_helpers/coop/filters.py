@@ -276,7 +276,11 @@ class _Storage:
     """The per-step arrays of a run, NaN where a step or a component has no measurement."""
 
     def __init__(self, K, rows):
-        self.rows, self.block = list(rows), np.ix_(list(rows), list(rows))
+        self.used = list(rows)
+        if len(self.used) == N_MEAS:  # basic slices: faster than index lists in the per-step loop
+            self.rows, self.block = slice(None), (slice(None), slice(None))
+        else:
+            self.rows, self.block = self.used, np.ix_(self.used, self.used)
         self.x_prior, self.x_post = np.empty((K, N_STATES)), np.empty((K, N_STATES))
         self.P_prior, self.P_post = np.empty((K, N_STATES, N_STATES)), np.empty((K, N_STATES, N_STATES))
         self.z_pred, self.y = np.full((K, N_MEAS), np.nan), np.full((K, N_MEAS), np.nan)
@@ -290,7 +294,7 @@ class _Storage:
 
     def finish(self, setup, truth) -> FilterResult:
         K = self.y.shape[0]
-        idx = self.rows
+        idx = self.used
         nis = np.full(K, np.nan)
         has = np.isfinite(self.y[:, idx]).all(axis=1)
         y_used, S_used = self.y[has], self.S[has]
@@ -327,13 +331,13 @@ def run_lkf(y, setup: FilterSetup | None = None, truth=None) -> FilterResult:
     y = _measurements(y)
     s = _setup(setup, "lkf")
     p, model, K = s.params, s.measurement, y.shape[0]
-    rows = list(model.rows)
     xnom = nominal_trajectory(p, K)
     ynom = model.h(xnom)
     F = np.eye(N_STATES) + p.dt * jacobian_A(xnom, p.u0, p.L)  # (K, 6, 6), F[k] maps k -> k+1
     H = model.jacobian(xnom)  # (K, m, 6)
     kf = make_lkf(s)
-    out = _Storage(K, rows)
+    out = _Storage(K, model.rows)
+    rows = out.rows
     for k in range(K):
         if k > 0:
             kf.predict(F=F[k - 1])
@@ -406,10 +410,10 @@ def run_ekf(y, setup: FilterSetup | None = None, truth=None) -> FilterResult:
     y = _measurements(y)
     s = _setup(setup, "ekf")
     model, K = s.measurement, y.shape[0]
-    rows = list(model.rows)
     ekf = make_ekf(s)
     residual = ekf.residual_z if s.wrap_innovations else np.subtract
-    out = _Storage(K, rows)
+    out = _Storage(K, model.rows)
+    rows = out.rows
     for k in range(K):
         if k > 0:
             ekf.predict()
@@ -495,9 +499,9 @@ def run_ukf(y, setup: FilterSetup | None = None, truth=None) -> FilterResult:
     y = _measurements(y)
     s = _setup(setup, "ukf")
     model, K = s.measurement, y.shape[0]
-    rows = list(model.rows)
     ukf = make_ukf(s)
-    out = _Storage(K, rows)
+    out = _Storage(K, model.rows)
+    rows = out.rows
     for k in range(K):
         if k > 0:
             ukf.predict()
