@@ -17,7 +17,7 @@ import time
 
 os.environ.setdefault("KFCAL_QUIET", "1")
 
-from kfcal_helpers.coop import FILTERS, CoopParams, generate_log, run_filter, simulate_truth, truth_model_test  # noqa: E402
+from kfcal_helpers.coop import FILTERS, CoopParams, run_filter, simulate, simulate_truth, truth_model_test  # noqa: E402
 from kfcal_helpers.coop.montecarlo import default_workers  # noqa: E402
 
 
@@ -37,10 +37,10 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=3, help="repetitions of the single-run timings (best kept)")
     args = ap.parse_args(argv)
     p = CoopParams()
-    log = generate_log(p)
+    log = simulate(p).log()
     steps = log.n_samples - 1
     workers = args.workers or default_workers()
-    print(f"cooperative localization, {steps} steps of {p.dT:g} s, {os.cpu_count()} CPUs, {workers} worker(s)")
+    print(f"cooperative localization, {steps} steps of {p.dt:g} s, {os.cpu_count()} CPUs, {workers} worker(s)")
     t_sim = _best_of(lambda: simulate_truth(p, 0, n_runs=args.runs), args.repeat)
     print(f"truth simulation (closed-form step, vectorised): {args.runs} runs in {t_sim * 1e3:.1f} ms "
           f"({t_sim / (args.runs * steps) * 1e6:.2f} us per run-step)")
@@ -50,7 +50,7 @@ def main(argv=None) -> int:
     for name in FILTERS:
         t_run = _best_of(lambda: run_filter(name, log.y, p), args.repeat)
         t0 = time.perf_counter()
-        mc = truth_model_test(name, args.runs, seed=0, params=p, workers=workers)
+        mc = truth_model_test(p, args.runs, 0, filter=name, workers=workers)
         t_mc = time.perf_counter() - t0
         total += t_mc
         print(f"{name.upper():<6}  {t_run / steps * 1e6:13.0f}  {t_run:11.3f}  {t_mc:14.2f}  "

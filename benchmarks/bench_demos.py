@@ -2,7 +2,7 @@
 
 One redraw = what a slider move costs: the compute function of the demo
 (:func:`kfcal_helpers.demos.compute_calibration_demo`: covariances once, one 200 Hz
-realization and a 200-realization ensemble; :func:`~kfcal_helpers.demos.compute_coop_demo`:
+realization and a 200-realization ensemble; :func:`~kfcal_helpers.coop.demos.compute_coop_demo`:
 one EKF or UKF run on the 1001-sample log) plus the update of the demo's figure, built once,
 and its rendering on an Agg canvas.  The live widget renders the canvas into a PNG instead
 (:func:`~kfcal_helpers.demos.figure_png`): the last column is compute + update + PNG.
@@ -36,9 +36,11 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from kfcal_helpers.coop import TUNED_Q_SCALE, generate_log  # noqa: E402
-from kfcal_helpers.demos import (LIVE_FIGSIZE, CalibrationDemoFigure, CoopDemoFigure,  # noqa: E402
-                                 compute_calibration_demo, compute_coop_demo, figure_png)
+from kfcal_helpers.coop import TUNED_Q_SCALE, simulate  # noqa: E402
+from kfcal_helpers.coop.demos import LIVE_FIGSIZE as COOP_FIGSIZE  # noqa: E402
+from kfcal_helpers.coop.demos import CoopDemoFigure, compute_coop_demo  # noqa: E402
+from kfcal_helpers.demos import (LIVE_FIGSIZE, CalibrationDemoFigure,  # noqa: E402
+                                 compute_calibration_demo, figure_png)
 from kfcal_helpers.style import use_style  # noqa: E402
 
 TARGET_MS = 100.0
@@ -112,8 +114,8 @@ def main(argv=None) -> int:
 
     print("\nCooperative-localization demo: one filter run on the 1001-sample log")
     print(HEADER)
-    log = generate_log()
-    cview = CoopDemoFigure(Figure(figsize=LIVE_FIGSIZE["coop"]))
+    log = simulate().log()
+    cview = CoopDemoFigure(Figure(figsize=COOP_FIGSIZE))
     for name, kw in COOP_SETTINGS:
         demo = compute_coop_demo(log, **kw)
         cview.update(demo)

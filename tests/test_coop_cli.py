@@ -9,7 +9,7 @@ import pytest
 from scipy.io import savemat
 
 from kfcal_helpers.cli import main
-from kfcal_helpers.coop import TUNED_Q_SCALE, CoopParams, course_log_path, generate_log, run_filter, write_log_csv
+from kfcal_helpers.coop import TUNED_Q_SCALE, CoopParams, course_log_path, simulate, run_filter, write_log_csv
 from kfcal_helpers.coop.cli import Q_SCALE_LADDER, SOURCE_FIT, SOURCE_GIVEN, SOURCE_TEST
 
 COURSE_LOG = course_log_path()  # KFCAL_COURSE_LOG, or None
@@ -30,14 +30,14 @@ def test_generated_log_json(capsys):
 
 def test_monte_carlo_json(capsys):
     out = _json(capsys, ["coop", "--filter", "lkf", "--runs", "3", "--seed", "1", "--json"])
-    for key in ("filter", "steps", "seconds", "runs", "nees_bounds", "nis_bounds",
+    for key in ("filter", "steps", "seconds", "n_runs", "nees_bounds", "nis_bounds",
                 "nees_inside_fraction", "nis_inside_fraction"):
         assert key in out
-    assert out["runs"] == 3 and 0 <= out["nees_inside_fraction"] <= 1
+    assert out["n_runs"] == 3 and 0 <= out["nees_inside_fraction"] <= 1
 
 
 def test_csv_log_and_every_table(capsys, tmp_path):
-    write_log_csv(generate_log(CoopParams(duration=5.0), seed=2), tmp_path / "log")
+    write_log_csv(simulate(CoopParams(duration=5.0), seed=2).log(), tmp_path / "log")
     assert main(["coop", "--filter", "ukf", "--log", str(tmp_path / "log"), "--every", "10"]) == 0
     text = capsys.readouterr().out
     assert "nis_time_average" in text and "{" not in text
@@ -65,13 +65,13 @@ def test_q_scale_choices(capsys, tmp_path):
     likelihoods and NIS and the range of scales whose NIS falls inside the bounds."""
     out = _json(capsys, ["coop", "--filter", "ekf", "--json"])
     assert out["q_scale"] == TUNED_Q_SCALE["ekf"] and out["q_scale_source"] == SOURCE_TEST
-    write_log_csv(generate_log(CoopParams(duration=20.0), seed=3), tmp_path / "log")
+    write_log_csv(simulate(CoopParams(duration=20.0), seed=3).log(), tmp_path / "log")
     default = _json(capsys, ["coop", "--filter", "ekf", "--log", str(tmp_path / "log"), "--json"])
     assert default["q_scale"] == TUNED_Q_SCALE["ekf"] and default["q_scale_source"] == SOURCE_TEST
     auto = _json(capsys, ["coop", "--filter", "ekf", "--log", str(tmp_path / "log"), "--q-scale", "auto", "--json"])
     assert auto["q_scale_source"] == SOURCE_FIT and "not a test" in SOURCE_FIT
     assert auto["fit_ladder"] == list(Q_SCALE_LADDER)
-    log = generate_log(CoopParams(duration=20.0), seed=3)
+    log = simulate(CoopParams(duration=20.0), seed=3).log()
     p = log.params()
     ll, nis = {}, {}
     for s in Q_SCALE_LADDER:
@@ -82,7 +82,7 @@ def test_q_scale_choices(capsys, tmp_path):
         r = run_filter("ekf", log.y, p, Q=s * p.Qtrue)
         has = np.isfinite(r.nis)
         ll[s] = sum(-0.5 * (nu @ np.linalg.solve(S, nu) + np.log(np.linalg.det(S)) + 5 * np.log(2 * np.pi))
-                    for nu, S in zip(r.innovations[has], r.S[has]))
+                    for nu, S in zip(r.y[has], r.S[has]))
     assert np.allclose(auto["fit_log_likelihood"], [ll[s] for s in Q_SCALE_LADDER], rtol=1e-9)
     assert np.allclose(auto["fit_nis_time_average"], [nis[s] for s in Q_SCALE_LADDER], rtol=1e-9)
     assert auto["q_scale"] == max(ll, key=ll.get)
@@ -92,7 +92,7 @@ def test_q_scale_choices(capsys, tmp_path):
 
 
 def _bad_mat(tmp_path, **change):
-    lg = generate_log(CoopParams(duration=1.0), seed=1)
+    lg = simulate(CoopParams(duration=1.0), seed=1).log()
     raw = {"ydata": lg.y.T, "tvec": lg.t[None, :], "Qtrue": lg.Qtrue, "Rtrue": lg.Rtrue}
     raw.update(change)
     for key in [k for k, v in raw.items() if v is None]:
@@ -124,3 +124,15 @@ def test_unknown_filter_is_usage_error():
     proc = subprocess.run([sys.executable, "-m", "kfcal_helpers", "coop", "--filter", "pf"],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_log_summary_honours_the_measurements_used():
+    """The NIS bounds of one run have as many degrees of freedom as the filter used measurements."""
+    from kfcal_helpers.consistency import chi2_bounds
+    from kfcal_helpers.coop.cli import log_summary
+
+    lg = simulate(CoopParams(duration=5.0), seed=2).log()
+    full = log_summary(run_filter("ekf", lg.y, lg.params(), truth=lg.truth))
+    sub = log_summary(run_filter("ekf", lg.y, lg.params(), measurements=(0, 1)))
+    assert full["nis_bounds"] == list(chi2_bounds(5, 50)) and full["nees_bounds"] == list(chi2_bounds(6, 51))
+    assert sub["nis_bounds"] == list(chi2_bounds(2, 50)) and "nees_bounds" not in sub

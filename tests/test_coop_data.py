@@ -1,5 +1,7 @@
 """Course-format logs: CSV folder and .mat, bad files, and the real course log when present."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.io import savemat
@@ -7,7 +9,7 @@ from scipy.io import savemat
 from kfcal_helpers.consistency import chi2_bounds
 from kfcal_helpers.coop import (
     CoopParams,
-    generate_log,
+    simulate,
     load_log,
     run_filter,
     TUNED_Q_SCALE,
@@ -23,13 +25,13 @@ SMALL = CoopParams(duration=2.0)
 
 @pytest.fixture(scope="module")
 def small_log():
-    return generate_log(SMALL, seed=4)
+    return simulate(SMALL, seed=4).log()
 
 
 def test_generated_log_is_seeded(small_log):
-    again = generate_log(SMALL, seed=4)
+    again = simulate(SMALL, seed=4).log()
     assert np.array_equal(small_log.y, again.y, equal_nan=True)
-    assert not np.array_equal(small_log.y, generate_log(SMALL, seed=5).y, equal_nan=True)
+    assert not np.array_equal(small_log.y, simulate(SMALL, seed=5).log().y, equal_nan=True)
     assert np.all(np.isnan(small_log.y[0])) and np.all(np.isfinite(small_log.y[1:]))
 
 
@@ -38,7 +40,7 @@ def test_csv_round_trip(small_log, tmp_path):
     back = load_log(tmp_path / "log")
     assert np.array_equal(back.y, small_log.y, equal_nan=True)
     assert np.allclose(back.t, small_log.t) and np.array_equal(back.Rtrue, small_log.Rtrue)
-    assert back.dT == pytest.approx(0.1)
+    assert back.dt == pytest.approx(0.1)
 
 
 def test_mat_with_course_variable_names(small_log, tmp_path):
@@ -92,7 +94,7 @@ def course_log():
 
 def test_course_log_format(course_log):
     assert course_log.y.shape == (1001, 5) and np.all(np.isnan(course_log.y[0]))
-    assert course_log.dT == pytest.approx(0.1)
+    assert course_log.dt == pytest.approx(0.1)
     # the first bearing crosses +-pi many times (25 times)
     crossings = int(np.sum(np.abs(np.diff(course_log.y[1:, 0])) > np.pi))
     assert crossings == 25
@@ -118,8 +120,8 @@ def test_truth_model_tuned_filters_on_course_log(course_log, name):
 
 def test_course_log_prefers_omega_dt(course_log):
     """The log's innovation likelihood over the per-step state noise c * Qtrue (Omega = I, Q = c Qtrue)
-    peaks at c = dT^2 = 0.01 of the ladder, i.e. Omega = dT I with Q = Qtrue, not at c = 1."""
-    p = course_log.params().replace(noise_model="identity")
+    peaks at c = dt^2 = 0.01 of the ladder, i.e. Omega = dt I with Q = Qtrue, not at c = 1."""
+    p = replace(course_log.params(), noise_model="identity")
     ladder = [0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0]
     fit = fit_q_scale("ekf", course_log.y, ladder, p)
     assert fit.best == 0.01

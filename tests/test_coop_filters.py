@@ -1,27 +1,29 @@
 """LKF, EKF, UKF: shapes, predict-only steps, agreement, truth-model NEES/NIS, bad input."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from kfcal_helpers.consistency import chi2_bounds
 from kfcal_helpers.coop import (
     CoopParams,
-    generate_log,
+    simulate,
     make_ekf,
     measurement_residual,
     run_filter,
     truth_model_test,
     fit_q_scale,
 )
-from kfcal_helpers.coop.filters import FilterSetup
+from kfcal_helpers.coop.filters import FilterSetup, SigmaPoints, run
 
 P = CoopParams()
-SHORT = P.replace(duration=20.0)
+SHORT = replace(P, duration=20.0)
 
 
 @pytest.fixture(scope="module")
 def log():
-    return generate_log(SHORT, seed=11)
+    return simulate(SHORT, seed=11).log()
 
 
 @pytest.mark.parametrize("name", ["lkf", "ekf", "ukf"])
@@ -29,11 +31,11 @@ def test_result_shapes_and_nan_rows(log, name):
     r = run_filter(name, log.y, SHORT, truth=log.truth)
     K = log.n_samples
     assert r.x.shape == (K, 6) and r.P.shape == (K, 6, 6)
-    assert r.innovations.shape == (K, 5) and r.S.shape == (K, 5, 5) and r.nis.shape == (K,) and r.nees.shape == (K,)
+    assert r.y.shape == (K, 5) and r.S.shape == (K, 5, 5) and r.nis.shape == (K,) and r.nees.shape == (K,)
     assert np.isnan(r.nis[0]) and np.all(np.isfinite(r.nis[1:]))
     assert np.all(np.isfinite(r.x)) and np.all(np.isfinite(r.nees))
     # the innovation is the wrapped difference of the measurement and the prediction
-    assert np.allclose(r.innovations[1:], measurement_residual(log.y[1:], r.z_pred[1:]))
+    assert np.allclose(r.y[1:], measurement_residual(log.y[1:], r.z_pred[1:]))
 
 
 @pytest.mark.parametrize("name", ["lkf", "ekf", "ukf"])
@@ -50,19 +52,18 @@ def test_nan_column_is_predict_only(log, name):
 
 
 def test_ekf_predict_is_nonlinear():
-    setup = FilterSetup.build("ekf", np.full((2, 5), np.nan), P)
-    ekf = make_ekf(setup)
+    ekf = make_ekf(FilterSetup("ekf", P))
     ekf.predict()
     from kfcal_helpers.coop import step
 
-    assert np.allclose(ekf.x[:, 0], step(P.x0, P.u0, P.dT, P.L), atol=1e-12)
+    assert np.allclose(ekf.x[:, 0], step(P.x0, P.u0, P.dt, P.L), atol=1e-12)
     assert ekf.x.shape == (6, 1)
 
 
 def test_filters_agree_near_the_nominal():
     """With tiny noise everything stays linear: LKF, EKF and UKF give the same estimates."""
-    quiet = SHORT.replace(Qtrue=1e-8 * np.eye(6), P0=1e-6 * np.eye(6))
-    lg = generate_log(quiet, seed=3)
+    quiet = replace(SHORT, Qtrue=1e-8 * np.eye(6), P0=1e-6 * np.eye(6))
+    lg = simulate(quiet, seed=3).log()
     xs = [run_filter(n, lg.y, quiet, Q=quiet.Qtrue).x for n in ("lkf", "ekf", "ukf")]
     assert np.abs(xs[0] - xs[1]).max() < 1e-3 and np.abs(xs[1] - xs[2]).max() < 1e-3
 
@@ -72,13 +73,13 @@ def test_unwrapped_innovation_breaks_nis(log):
     r = run_filter("ekf", log.y, SHORT)
     raw = log.y[1:] - r.z_pred[1:]
     assert np.abs(raw[:, 0]).max() > np.pi  # the bearing crosses +-pi in this log
-    assert np.abs(r.innovations[:, 0][1:]).max() < np.pi
+    assert np.abs(r.y[:, 0][1:]).max() < np.pi
 
 
 @pytest.mark.parametrize("name", ["ekf", "ukf"])
 def test_truth_model_nees_nis_inside_bounds(name):
     """Short seeded Monte Carlo: the tuned filters are consistent at most steps."""
-    mc = truth_model_test(name, n_runs=12, seed=5, params=P.replace(duration=15.0), workers=1)
+    mc = truth_model_test(replace(P, duration=15.0), 12, 5, filter=name, workers=1)
     assert mc.nees_bounds == chi2_bounds(6, 12, 0.05) and mc.nis_bounds == chi2_bounds(5, 12, 0.05)
     assert mc.nees.shape == (12, 151) and mc.nis.shape == (12, 151)
     assert mc.nees_inside_fraction > 0.8
@@ -87,25 +88,25 @@ def test_truth_model_nees_nis_inside_bounds(name):
 
 def test_lkf_truth_model_consistent_near_the_nominal():
     """The LKF is consistent while the truth stays near the nominal (small process noise, short run)."""
-    near = P.replace(duration=10.0, Qtrue=0.01 * P.Qtrue)
-    mc = truth_model_test("lkf", n_runs=12, seed=5, params=near, workers=1)
+    near = replace(P, duration=10.0, Qtrue=0.01 * P.Qtrue)
+    mc = truth_model_test(near, 12, 5, filter="lkf", workers=1)
     assert mc.nees_inside_fraction > 0.8 and mc.nis_inside_fraction > 0.8
 
 
 def test_lkf_truth_model_fails_far_from_the_nominal():
     """Over the full 100 s the headings drift from the nominal and the LKF's NEES leaves its bounds."""
-    mc = truth_model_test("lkf", n_runs=12, seed=5, params=P, workers=1)
+    mc = truth_model_test(P, 12, 5, filter="lkf", workers=1)
     assert mc.nees_mean[-50:].min() > mc.nees_bounds[1]
 
 
 @pytest.mark.parametrize("name", ["lkf", "ekf", "ukf"])
 def test_filters_use_omega(name):
-    """Every filter's per-step process noise is Omega Q Omega^T: with Omega = dT I a predict-only step from
-    P = 0 (no measurement) gives dT^2 Q; with the "identity" variant Q itself."""
+    """Every filter's per-step process noise is Omega Q Omega^T: with Omega = dt I a predict-only step from
+    P = 0 (no measurement) gives dt^2 Q; with the "identity" variant Q itself."""
     y = np.full((2, 5), np.nan)
     Q = np.diag([1.0, 2.0, 0.5, 3.0, 4.0, 0.25])
-    for model, factor in (("dT", P.dT ** 2), ("identity", 1.0)):
-        pp = P.replace(noise_model=model, duration=P.dT, u0=np.zeros(4))  # standing still: F = I
+    for model, factor in (("dt", P.dt ** 2), ("identity", 1.0)):
+        pp = replace(P, noise_model=model, duration=P.dt, u0=np.zeros(4))  # standing still: F = I
         r = run_filter(name, y, pp, Q=Q, P0=1e-12 * np.eye(6))
         assert np.allclose(r.P[1], factor * Q + 1e-12 * np.eye(6), rtol=1e-6, atol=1e-12)
 
@@ -132,9 +133,9 @@ def test_robust_sqrt():
 
 
 def test_monte_carlo_does_not_depend_on_workers():
-    pp = P.replace(duration=3.0)
-    a = truth_model_test("ekf", n_runs=4, seed=2, params=pp, workers=1)
-    b = truth_model_test("ekf", n_runs=4, seed=2, params=pp, workers=2)
+    pp = replace(P, duration=3.0)
+    a = truth_model_test(pp, 4, 2, filter="ekf", workers=1)
+    b = truth_model_test(pp, 4, 2, filter="ekf", workers=2)
     assert np.allclose(a.nees, b.nees) and np.allclose(a.nis, b.nis, equal_nan=True)
 
 
@@ -148,7 +149,7 @@ def test_fewer_measurements_grow_the_covariance(log):
 def test_fit_q_scale_maximum_likelihood():
     """On a generated log (Q = Qtrue) the likelihood over the ladder peaks at the truth's scale 1 and falls
     on both sides; the scales inside the NIS bounds are reported apart from the fit."""
-    lg = generate_log(P, seed=21)
+    lg = simulate(P, seed=21).log()
     fit = fit_q_scale("ekf", lg.y, [0.01, 0.1, 1.0, 10.0, 100.0], P)
     assert fit.best == 1.0
     ll = fit.log_likelihood
@@ -182,9 +183,15 @@ def test_filter_bad_measurements(log):
     with pytest.raises(ValueError, match="filter must be one of"):
         run_filter("pf", log.y, SHORT)
     with pytest.raises(ValueError, match="alpha must"):
-        run_filter("ukf", log.y, SHORT, alpha=0.0)
+        run_filter("ukf", log.y, SHORT, points=SigmaPoints(alpha=0.0))
+    with pytest.raises(ValueError, match="points must be a SigmaPoints"):
+        run_filter("ukf", log.y, SHORT, points={"alpha": 0.5})
     with pytest.raises(ValueError, match="n_runs must"):
-        truth_model_test("ekf", n_runs=0)
+        truth_model_test(P, 0)
+    with pytest.raises(ValueError, match="alpha must be a number in"):
+        truth_model_test(P, 2, alpha=1.5)
+    with pytest.raises(ValueError, match="setup must be a FilterSetup"):
+        run(log.y, {"filter": "ekf"})
 
 
 def test_same_position_in_filter():
@@ -192,20 +199,20 @@ def test_same_position_in_filter():
     y = np.full((3, 5), np.nan)
     y[1] = [0.0, 10.0, 0.0, 10.0, 0.0]
     with pytest.raises(ValueError, match="x: the two vehicles are at the same position"):
-        run_filter("ekf", y, P.replace(u0=np.zeros(4)), x0=np.array([10.0, 0, 0, 10.0, 0, 0]), P0=np.eye(6))
-    same = P.replace(x0=np.array([10.0, 0, 0, 10.0, 0, 0]), u0=np.zeros(4))
+        run_filter("ekf", y, replace(P, u0=np.zeros(4)), x0=np.array([10.0, 0, 0, 10.0, 0, 0]), P0=np.eye(6))
+    same = replace(P, x0=np.array([10.0, 0, 0, 10.0, 0, 0]), u0=np.zeros(4))
     with pytest.raises(ValueError, match="x: the two vehicles are at the same position"):
         run_filter("lkf", y, same)
 
 
-def test_simulate_runs_and_median_run():
-    """simulate_runs draws exactly the truth-model test's data: re-running the median run by time-averaged
+def test_simulate_and_median_run():
+    """simulate draws exactly the truth-model test's data: re-running the median run by time-averaged
     NEES with run_filter reproduces its NEES."""
-    from kfcal_helpers.coop import simulate_runs
-
-    pp = P.replace(duration=3.0)
-    mc = truth_model_test("ekf", n_runs=5, seed=4, params=pp, workers=1, every=2)
-    truth, y = simulate_runs(5, 4, pp, every=2)
+    pp = replace(P, duration=3.0)
+    mc = truth_model_test(pp, 5, 4, filter="ekf", workers=1, every=2)
+    sim = simulate(pp, 5, 4, every=2)
+    truth, y = sim.truth, sim.y
+    assert sim.n_runs == 5 and mc.n_runs == 5
     i = mc.median_run()
     avg = mc.nees.mean(axis=1)
     assert np.sum(avg < avg[i]) == 2 and np.sum(avg > avg[i]) == 2
@@ -223,9 +230,72 @@ def test_plot_runs_consistency():
     """Each run's points, the average and both bounds on each panel, titles with the inside fraction."""
     from kfcal_helpers.coop.plots import plot_runs_consistency
 
-    mc = truth_model_test("ekf", n_runs=3, seed=1, params=P.replace(duration=2.0), workers=1)
+    mc = truth_model_test(replace(P, duration=2.0), 3, 1, filter="ekf", workers=1)
     fig = plot_runs_consistency(mc)
     for ax, values in zip(fig.axes, (mc.nees, mc.nis)):
         assert len(ax.lines) == 4 and ax.get_yscale() == "log"
         assert ax.lines[0].get_xydata().shape[0] == np.isfinite(values).sum()
     assert "inside" in fig.axes[0].get_title()
+
+
+@pytest.mark.parametrize("name", ["lkf", "ekf", "ukf"])
+def test_result_prior_posterior_and_gain(log, name):
+    """filterpy's names: x_prior/P_prior before and x_post/P_post after each update, K the gain:
+    x_post - x_prior = K y (headings wrapped) and P_post <= P_prior; without a measurement post = prior."""
+    from kfcal_helpers.coop import state_residual
+
+    y = log.y.copy()
+    y[30:40] = np.nan
+    r = run_filter(name, y, SHORT)
+    assert r.x is r.x_post and r.P is r.P_post and r.filter == name
+    assert np.array_equal(r.x_prior[0], run_filter(name, y[:1], SHORT).x_prior[0])
+    assert np.allclose(r.x_prior[0], SHORT.x0) and np.allclose(r.P_prior[0], SHORT.P0)
+    has = np.isfinite(r.nis)
+    gain_step = np.einsum("kij,kj->ki", r.K[has], r.y[has])
+    assert np.allclose(state_residual(r.x_post[has], r.x_prior[has]), gain_step, atol=1e-9)
+    assert np.all(np.isnan(r.K[~has])) and np.array_equal(r.x_post[~has], r.x_prior[~has])
+    assert np.all(np.trace(r.P_post[has], axis1=1, axis2=2) < np.trace(r.P_prior[has], axis1=1, axis2=2))
+
+
+@pytest.mark.parametrize("name", ["lkf", "ekf", "ukf"])
+def test_setup_runners_equal_run_filter(log, name):
+    """run_xkf(y, setup, truth) with a FilterSetup of a measurement model's subset equals run_filter's
+    measurements= keyword; NaN in the components not used."""
+    from kfcal_helpers.coop import MeasurementModel
+
+    model = MeasurementModel(SHORT.Rtrue).subset((0, 2, 3))
+    assert model.rows == (0, 2, 3) and model.angles == (0, 1) and model.dim == 3
+    assert np.array_equal(model.R, SHORT.Rtrue[np.ix_([0, 2, 3], [0, 2, 3])])
+    assert model.subset((1, 2)).rows == (2, 3) and model.subset([1]).angles == (0,)
+    setup = FilterSetup(name, SHORT, measurement=model)
+    a = run(log.y, setup, log.truth)
+    b = run_filter(name, log.y, SHORT, measurements=(3, 0, 2), truth=log.truth)
+    assert a.measurements == b.measurements == (0, 2, 3)
+    assert np.array_equal(a.x, b.x) and np.array_equal(a.nis, b.nis, equal_nan=True)
+    assert np.all(np.isnan(a.y[:, [1, 4]])) and np.all(np.isnan(a.K[:, :, [1, 4]]))
+    with pytest.raises(ValueError, match="idx must be a non-empty sequence"):
+        model.subset((0, 3))
+    with pytest.raises(ValueError, match="rows must be a sorted"):
+        MeasurementModel(np.eye(2), (2, 0))
+    with pytest.raises(ValueError, match="R must be a 2x2"):
+        MeasurementModel(np.eye(3), (0, 2))
+
+
+def test_state_descriptor():
+    from kfcal_helpers.coop import STATE, StateDescriptor, state_mean, wrap_state
+
+    x = np.array([1.0, 2.0, 3.5, 4.0, 5.0, -3.5])
+    assert STATE.angles == (2, 5) and np.array_equal(STATE.wrap(x), wrap_state(x))
+    assert np.allclose(STATE.residual(x, -x)[[2, 5]], [7 - 2 * np.pi, -7 + 2 * np.pi])
+    pts = np.stack([x, x + 0.1])
+    assert np.array_equal(STATE.mean(pts, [0.5, 0.5]), state_mean(pts, [0.5, 0.5]))
+    with pytest.raises(ValueError, match="angles must be sorted"):
+        StateDescriptor(3, (2, 0))
+
+
+def test_monte_carlo_of_a_subset_has_its_nis_dimension():
+    """With 3 measurements the NIS bounds and the nis check use 3 degrees of freedom."""
+    pp = replace(P, duration=2.0)
+    mc = truth_model_test(pp, 4, 1, filter="ekf", workers=1, measurements=(0, 1, 2))
+    assert mc.measurements == (0, 1, 2) and mc.nis_bounds == chi2_bounds(3, 4)
+    assert np.all(mc.checks()["nis"].expected == 3)

@@ -1,5 +1,7 @@
 """Model of the cooperative-localization problem: closed form, wrapping, Jacobians, observability."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -49,7 +51,7 @@ def test_closed_form_matches_solve_ivp():
     # the one-step map applied repeatedly gives the same trajectory
     x = P.x0.copy()
     for _ in range(100):
-        x = step(x, P.u0, P.dT, P.L)
+        x = step(x, P.u0, P.dt, P.L)
     assert np.abs(state_residual(x, nominal_trajectory(P)[100])).max() < 1e-9
 
 
@@ -126,14 +128,14 @@ def test_discretization_is_matrix_exponential():
 
     x = nominal_trajectory(P)[37]
     A, B, C = jacobian_A(x, P.u0), jacobian_B(x, P.u0), jacobian_C(x)
-    F, G, H = discretize(A, B, C, P.dT)
-    assert np.allclose(F, expm(A * P.dT), atol=1e-14)
-    assert np.allclose(G, P.dT * B) and np.allclose(H, C)
+    F, G, H = discretize(A, B, C, P.dt)
+    assert np.allclose(F, expm(A * P.dt), atol=1e-14)
+    assert np.allclose(G, P.dt * B) and np.allclose(H, C)
 
 
 def test_observability_over_a_window():
     xn = nominal_trajectory(P)[:10]
-    F = np.eye(6) + P.dT * jacobian_A(xn, P.u0)
+    F = np.eye(6) + P.dt * jacobian_A(xn, P.u0)
     H = jacobian_C(xn)
     assert np.linalg.matrix_rank(observability_matrix(F[:1], H[:1])) == 5
     assert np.linalg.matrix_rank(observability_matrix(F[:9], H)) == 6
@@ -144,8 +146,8 @@ def test_observability_over_a_window():
 def test_params_bad_input():
     with pytest.raises(ValueError, match="L must"):
         CoopParams(L=0)
-    with pytest.raises(ValueError, match="dT must"):
-        CoopParams(dT=-0.1)
+    with pytest.raises(ValueError, match="dt must"):
+        CoopParams(dt=-0.1)
     with pytest.raises(ValueError, match="Qtrue must be symmetric"):
         CoopParams(Qtrue=np.diag([1.0] * 6) + np.triu(np.ones((6, 6)), 1) * 0.1)
     with pytest.raises(ValueError, match="Rtrue must be positive definite"):
@@ -171,7 +173,7 @@ def test_same_position_raises():
 def test_params_are_read_only():
     with pytest.raises(ValueError):
         P.Qtrue[0, 0] = 1.0
-    assert P.replace(L=1.0).L == 1.0 and P.L == 0.5
+    assert replace(P, L=1.0).L == 1.0 and P.L == 0.5
 
 
 def test_wrap_one_vector_matches_the_array_path():
@@ -185,56 +187,56 @@ def test_wrap_one_vector_matches_the_array_path():
 
 
 def test_noise_model_omega():
-    """Omega = dT I by default (state noise dT^2 Qtrue per step); Omega = I is the named variant."""
-    assert P.noise_model == "dT" and np.allclose(P.Omega, 0.1 * np.eye(6))
+    """Omega = dt I by default (state noise dt^2 Qtrue per step); Omega = I is the named variant."""
+    assert P.noise_model == "dt" and np.allclose(P.Omega, 0.1 * np.eye(6))
     assert np.allclose(P.process_noise(), 0.01 * P.Qtrue)
-    ident = P.replace(noise_model="identity")
+    ident = replace(P, noise_model="identity")
     assert np.allclose(ident.Omega, np.eye(6)) and np.allclose(ident.process_noise(), P.Qtrue)
-    with pytest.raises(ValueError, match="noise_model must be one of 'dT', 'identity'"):
+    with pytest.raises(ValueError, match="noise_model must be one of 'dt', 'identity'"):
         CoopParams(noise_model="I")
     with pytest.raises(ValueError, match="Q must be positive definite"):
         P.process_noise(-np.eye(6))
 
 
-@pytest.mark.parametrize("model, factor", [("dT", 0.01), ("identity", 1.0)])
+@pytest.mark.parametrize("model, factor", [("dt", 0.01), ("identity", 1.0)])
 def test_truth_simulation_uses_omega(model, factor):
     """The truth's one-step increments beyond the closed-form map have covariance Omega Qtrue Omega^T:
     the sample variances of 400 runs x 20 steps lie within 5 standard errors of factor * Qtrue."""
     from kfcal_helpers.coop import simulate_truth
 
-    pp = P.replace(noise_model=model, duration=2.0)
+    pp = replace(P, noise_model=model, duration=2.0)
     x = simulate_truth(pp, np.random.default_rng(3), n_runs=400)
-    w = state_residual(x[:, 1:], step(x[:, :-1], pp.u0, pp.dT, pp.L)).reshape(-1, 6)
+    w = state_residual(x[:, 1:], step(x[:, :-1], pp.u0, pp.dt, pp.L)).reshape(-1, 6)
     var = w.var(axis=0)
     expected = factor * np.diag(P.Qtrue)
     assert np.all(np.abs(var / expected - 1) < 5 * np.sqrt(2 / w.shape[0]))
 
 
 def test_exact_step_jacobian():
-    """jacobian_step against finite differences of the exact map; I + dT A differs from it at second order."""
+    """jacobian_step against finite differences of the exact map; I + dt A differs from it at second order."""
     from kfcal_helpers.coop.model import jacobian_step
 
     rng = np.random.default_rng(2)
     x = P.x0 + rng.normal(size=(5, 6))
     for xi in x:
-        fd = _fd(lambda a, b: state_residual(step(a, P.u0, P.dT, P.L), step(b, P.u0, P.dT, P.L)), xi)
-        assert np.allclose(jacobian_step(xi, P.u0, P.dT, P.L), fd, atol=1e-7)
-        euler = np.eye(6) + P.dT * jacobian_A(xi, P.u0, P.L)
-        gap = np.abs(euler - jacobian_step(xi, P.u0, P.dT, P.L)).max()
-        assert 1e-4 < gap < 0.1  # 12 m/s * (pi/25 * 0.1)^2 / ... : second order in dT
+        fd = _fd(lambda a, b: state_residual(step(a, P.u0, P.dt, P.L), step(b, P.u0, P.dt, P.L)), xi)
+        assert np.allclose(jacobian_step(xi, P.u0, P.dt, P.L), fd, atol=1e-7)
+        euler = np.eye(6) + P.dt * jacobian_A(xi, P.u0, P.L)
+        gap = np.abs(euler - jacobian_step(xi, P.u0, P.dt, P.L)).max()
+        assert 1e-4 < gap < 0.1  # 12 m/s * (pi/25 * 0.1)^2 / ... : second order in dt
 
 
 def test_course_log_setting(tmp_path, monkeypatch):
     """KFCAL_COURSE_LOG: a valid folder is loaded; unset or missing falls back to the generated log, saying so."""
-    from kfcal_helpers.coop import course_log, generate_log, write_log_csv
+    from kfcal_helpers.coop import course_log, simulate, write_log_csv
 
     monkeypatch.delenv("KFCAL_COURSE_LOG", raising=False)
-    log, found, msg = course_log(P.replace(duration=1.0), seed=3)
+    log, found, msg = course_log(replace(P, duration=1.0), seed=3)
     assert not found and "is not set" in msg and len(msg.splitlines()) == 1
-    assert np.array_equal(log.y, generate_log(P.replace(duration=1.0), seed=3).y, equal_nan=True)
+    assert np.array_equal(log.y, simulate(replace(P, duration=1.0), seed=3).log().y, equal_nan=True)
     monkeypatch.setenv("KFCAL_COURSE_LOG", str(tmp_path / "nothing"))
-    assert course_log(P.replace(duration=1.0))[1] is False
-    write_log_csv(generate_log(P.replace(duration=1.0), seed=4), tmp_path / "log")
+    assert course_log(replace(P, duration=1.0))[1] is False
+    write_log_csv(simulate(replace(P, duration=1.0), seed=4).log(), tmp_path / "log")
     monkeypatch.setenv("KFCAL_COURSE_LOG", str(tmp_path / "log"))
     log, found, msg = course_log()
     assert found and str(tmp_path / "log") in msg and log.n_samples == 11

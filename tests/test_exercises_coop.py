@@ -15,12 +15,14 @@ from filterpy.kalman import MerweScaledSigmaPoints
 from scipy.linalg import expm
 from scipy.special import gammaincinv
 
-import kfcal_helpers.exercises as exercises
-from kfcal_helpers.coop import CoopParams, generate_log
-from kfcal_helpers.exercises import coop
+from dataclasses import replace
+
+import kfcal_helpers.coop.exercises as exercises
+from kfcal_helpers.coop import CoopParams, simulate
+from kfcal_helpers.coop import exercises as coop
 from kfcal_helpers.exercises._core import GENERIC_HINT, Feedback
 
-HINTS = coop.HINTS
+HINTS = {ex: e.hints for ex, e in coop.EXERCISES.items() if not ex.startswith("18.")}
 P = CoopParams()
 VG, PHI, VA, WA = P.u0
 
@@ -42,18 +44,18 @@ def avg_bounds(dim, n, alpha, tails=None):
 
 # ---------------------------------------------------------------------------
 # Model written out independently: the arcs in radius form, the CT dynamics by hand.
-def arc_radius(x, u, dT, L=0.5):
-    """Exact one-step map: xi + v/w (sin(th + w dT) - sin th), eta + v/w (cos th - cos(th + w dT))."""
+def arc_radius(x, u, dt, L=0.5):
+    """Exact one-step map: xi + v/w (sin(th + w dt) - sin th), eta + v/w (cos th - cos(th + w dt))."""
     x = np.asarray(x, dtype=float)
     vg, phi, va, wa = u
     out = np.empty(6)
     for i, v, w in ((0, vg, vg * math.tan(phi) / L), (3, va, wa)):
         th = x[i + 2]
         if w == 0:
-            out[i:i + 3] = x[i] + v * dT * math.cos(th), x[i + 1] + v * dT * math.sin(th), th
+            out[i:i + 3] = x[i] + v * dt * math.cos(th), x[i + 1] + v * dt * math.sin(th), th
         else:
-            out[i:i + 3] = (x[i] + v / w * (math.sin(th + w * dT) - math.sin(th)),
-                            x[i + 1] + v / w * (math.cos(th) - math.cos(th + w * dT)), th + w * dT)
+            out[i:i + 3] = (x[i] + v / w * (math.sin(th + w * dt) - math.sin(th)),
+                            x[i + 1] + v / w * (math.cos(th) - math.cos(th + w * dt)), th + w * dt)
     out[[2, 5]] = wrap(out[[2, 5]])
     return out
 
@@ -93,42 +95,42 @@ def right_08_1():
     return arc_radius(coop.STEP_X, coop.STEP_U, coop.STEP_DT)
 
 
-def chord(x, u, dT, L=0.5, *, length="sinc", mid=True, yaw_L=True, swap=False, wrapped=True):
+def chord(x, u, dt, L=0.5, *, length="sinc", mid=True, yaw_L=True, swap=False, wrapped=True):
     x = np.asarray(x, dtype=float)
     vg, phi, va, wa = u
     out = np.empty(6)
     for i, v, w in ((0, vg, vg * math.tan(phi) / (L if yaw_L else 1.0)), (3, va, wa)):
-        th, a = x[i + 2], w * dT / 2
-        d = {"sinc": v * dT * (math.sin(a) / a if a else 1.0), "np_sinc": v * dT * np.sinc(a), "none": v * dT}[length]
+        th, a = x[i + 2], w * dt / 2
+        d = {"sinc": v * dt * (math.sin(a) / a if a else 1.0), "np_sinc": v * dt * np.sinc(a), "none": v * dt}[length]
         direction = th + a if mid else th
         c, s = math.cos(direction), math.sin(direction)
         if swap:
             c, s = s, c
-        out[i:i + 3] = x[i] + d * c, x[i + 1] + d * s, th + w * dT
+        out[i:i + 3] = x[i] + d * c, x[i + 1] + d * s, th + w * dt
     if wrapped:
         out[[2, 5]] = wrap(out[[2, 5]])
     return out
 
 
 def wrong_08_1():
-    x, u, dT = np.array(coop.STEP_X), coop.STEP_U, coop.STEP_DT
-    euler = x + dT * f_ct(x, u)
+    x, u, dt = np.array(coop.STEP_X), coop.STEP_U, coop.STEP_DT
+    euler = x + dt * f_ct(x, u)
     euler[[2, 5]] = wrap(euler[[2, 5]])
     vg, phi, va, wa = u
     wg = vg * math.tan(phi) / 0.5
     with np.errstate(all="ignore"):
-        radius_form_uav = x[3] + np.float64(va) / np.float64(wa) * (math.sin(x[5] + wa * dT) - math.sin(x[5]))
+        radius_form_uav = x[3] + np.float64(va) / np.float64(wa) * (math.sin(x[5] + wa * dt) - math.sin(x[5]))
     nan_answer = right_08_1()
     nan_answer[3] = radius_form_uav
     unwrapped = right_08_1()
-    unwrapped[2] = x[2] + wg * dT
+    unwrapped[2] = x[2] + wg * dt
     return {
         "euler": euler,
-        "start_heading": chord(x, u, dT, mid=False),
-        "np_sinc": chord(x, u, dT, length="np_sinc"),
-        "no_sinc": chord(x, u, dT, length="none"),
-        "no_L": chord(x, u, dT, yaw_L=False),
-        "cos_sin": chord(x, u, dT, swap=True),
+        "start_heading": chord(x, u, dt, mid=False),
+        "np_sinc": chord(x, u, dt, length="np_sinc"),
+        "no_sinc": chord(x, u, dt, length="none"),
+        "no_L": chord(x, u, dt, yaw_L=False),
+        "cos_sin": chord(x, u, dt, swap=True),
         "wrap": unwrapped,
         "nan": nan_answer,
     }
@@ -200,7 +202,7 @@ def right_09_2():
 
 
 def wrong_09_2():
-    x, dT = np.array(coop.FDT_X), coop.FDT_DT
+    x, dt = np.array(coop.FDT_X), coop.FDT_DT
     A = A_fd(x)
     sign = -A
     sin_cos = np.zeros((6, 6))
@@ -210,8 +212,8 @@ def wrong_09_2():
     speeds[0, 2], speeds[1, 2] = -VA * math.sin(x[2]), VA * math.cos(x[2])
     speeds[3, 5], speeds[4, 5] = -VG * math.sin(x[5]), VG * math.cos(x[5])
     I = np.eye(6)
-    return {"A_only": A, "no_dt": I + A, "notebook_dt": I + 0.1 * A, "transposed": (I + dT * A).T,
-            "sign": I + dT * sign, "sin_cos": I + dT * sin_cos, "speeds": I + dT * speeds}
+    return {"A_only": A, "no_dt": I + A, "notebook_dt": I + 0.1 * A, "transposed": (I + dt * A).T,
+            "sign": I + dt * sign, "sin_cos": I + dt * sin_cos, "speeds": I + dt * speeds}
 
 
 def obs_gps_by_hand(m):
@@ -221,9 +223,9 @@ def obs_gps_by_hand(m):
     Phi, blocks = np.eye(6), []
     for k in range(m):
         blocks.append(H @ Phi)
-        th = -np.pi / 2 + WA * k * P.dT  # nominal UAV heading at t_k
+        th = -np.pi / 2 + WA * k * P.dt  # nominal UAV heading at t_k
         F = np.eye(6)
-        F[3, 5], F[4, 5] = -P.dT * VA * math.sin(th), P.dT * VA * math.cos(th)
+        F[3, 5], F[4, 5] = -P.dt * VA * math.sin(th), P.dt * VA * math.cos(th)
         Phi = F @ Phi
     return np.vstack(blocks)
 
@@ -313,21 +315,21 @@ def wrong_11_1():
 
 
 def right_11_2():
-    return np.eye(6) + P.dT * A_fd(coop.EKF_X)
+    return np.eye(6) + P.dt * A_fd(coop.EKF_X)
 
 
 def wrong_11_2():
     x = np.array(coop.EKF_X)
-    prior = arc_radius(x, P.u0, P.dT)
+    prior = arc_radius(x, P.u0, P.dt)
     nominal = arc_radius(P.x0, P.u0, coop.EKF_T)  # the closed form over 3 s from x0
     A = A_fd(x)
     return {
-        "prior": np.eye(6) + P.dT * A_fd(prior),
-        "nominal": np.eye(6) + P.dT * A_fd(nominal),
+        "prior": np.eye(6) + P.dt * A_fd(prior),
+        "nominal": np.eye(6) + P.dt * A_fd(nominal),
         "A_only": A,
         "no_dt": np.eye(6) + A,
-        "transposed": (np.eye(6) + P.dT * A).T,
-        "exact_map": fd(lambda z: arc_radius(z, P.u0, P.dT), x, angles=(2, 5)),
+        "transposed": (np.eye(6) + P.dt * A).T,
+        "exact_map": fd(lambda z: arc_radius(z, P.u0, P.dt), x, angles=(2, 5)),
     }
 
 
@@ -379,14 +381,14 @@ def wrong_12_2():
 @pytest.fixture(scope="module")
 def updates_15s():
     """K of a simulated 15 s log in the course format: rows with a measurement."""
-    log = generate_log(P.replace(duration=15.0))
+    log = simulate(replace(P, duration=15.0)).log()
     assert log.n_samples == coop.LOG_SAMPLES
     return int(np.isfinite(log.y[:, 0]).sum())
 
 
 @pytest.fixture(scope="module")
 def updates_every10():
-    log = generate_log(P).every(coop.SPARSE_EVERY)
+    log = simulate(P).log().every(coop.SPARSE_EVERY)
     assert log.n_samples == coop.SPARSE_SAMPLES
     return int(np.isfinite(log.y[:, 0]).sum())
 
@@ -408,19 +410,19 @@ def wrong_13(K, alpha, notebook_alpha=True):
 
 # registry: exercise -> (check, is_function_exercise)
 CHECKS = {
-    "08.1": (exercises.check_coop_step_map, False),
-    "08.2": (exercises.check_coop_measurement, False),
-    "09.1": (exercises.check_coop_bearing_row, False),
-    "09.2": (exercises.check_coop_F_dt, False),
-    "09.3": (exercises.check_coop_obs_rank, False),
-    "10.1": (exercises.check_coop_mc_bounds, False),
-    "10.2": (exercises.check_coop_lkf_innovation, True),
-    "11.1": (exercises.check_coop_ekf_residual, True),
-    "11.2": (exercises.check_coop_ekf_F, False),
-    "12.1": (exercises.check_coop_merwe_weights, False),
-    "12.2": (exercises.check_coop_circular_mean, True),
-    "13.1": (exercises.check_coop_log_nis_bounds, False),
-    "13.2": (exercises.check_coop_sparse_nis_bounds, False),
+    "08.1": (exercises.check_step_map, False),
+    "08.2": (exercises.check_measurement, False),
+    "09.1": (exercises.check_bearing_row, False),
+    "09.2": (exercises.check_F_dt, False),
+    "09.3": (exercises.check_obs_rank, False),
+    "10.1": (exercises.check_mc_bounds, False),
+    "10.2": (exercises.check_lkf_innovation, True),
+    "11.1": (exercises.check_ekf_residual, True),
+    "11.2": (exercises.check_ekf_F, False),
+    "12.1": (exercises.check_merwe_weights, False),
+    "12.2": (exercises.check_circular_mean, True),
+    "13.1": (exercises.check_log_nis_bounds, False),
+    "13.2": (exercises.check_sparse_nis_bounds, False),
 }
 
 RIGHT = {"08.1": right_08_1, "08.2": right_08_2, "09.1": right_09_1, "09.2": right_09_2, "09.3": right_09_3,
@@ -439,9 +441,10 @@ def _assert_one_line(fb, exercise):
 
 
 def test_all_checks_exported():
-    assert set(coop.__all__) == {c.__name__ for c, _ in CHECKS.values()}
-    assert set(coop.__all__) <= set(exercises.__all__)
+    checks = {name for name in coop.__all__ if name.startswith("check_")}
+    assert checks == {c.__name__ for c, _ in CHECKS.values()} | {"check_subset_nis_bounds", "check_lost_directions"}
     assert set(HINTS) == set(CHECKS)
+    assert all(ex.id == key for key, ex in coop.EXERCISES.items())
 
 
 @pytest.mark.parametrize("exercise", sorted(RIGHT))
@@ -454,9 +457,9 @@ def test_accepts_the_right_answer(exercise):
 
 def test_accepts_the_right_bounds(updates_15s, updates_every10):
     assert updates_15s == 150 and updates_every10 == 100
-    fb = exercises.check_coop_log_nis_bounds(avg_bounds(5, updates_15s, coop.LOG_ALPHA))
+    fb = exercises.check_log_nis_bounds(avg_bounds(5, updates_15s, coop.LOG_ALPHA))
     assert fb.correct, str(fb)
-    fb = exercises.check_coop_sparse_nis_bounds(avg_bounds(5, updates_every10, 0.05))
+    fb = exercises.check_sparse_nis_bounds(avg_bounds(5, updates_every10, 0.05))
     assert fb.correct, str(fb)
 
 
@@ -469,19 +472,19 @@ def test_bounds_rounded_to_three_decimals_pass(exercise, updates_15s, updates_ev
 
 def test_other_valid_forms_are_accepted():
     # -pi instead of pi, [-pi, pi) conventions and (5,) vs (5, 1) where the shape does not matter
-    assert exercises.check_coop_ekf_residual(residual_mod).correct
-    assert exercises.check_coop_lkf_innovation(lambda *a: lkf_right(*a).reshape(5, 1)).correct
-    assert exercises.check_coop_mc_bounds(right_10_1().ravel()).correct
-    assert exercises.check_coop_obs_rank([int(r) for r in right_09_3()]).correct
-    assert exercises.check_coop_circular_mean(lambda a, w: np.array([circ_right(a, w)])).correct
+    assert exercises.check_ekf_residual(residual_mod).correct
+    assert exercises.check_lkf_innovation(lambda *a: lkf_right(*a).reshape(5, 1)).correct
+    assert exercises.check_mc_bounds(right_10_1().ravel()).correct
+    assert exercises.check_obs_rank([int(r) for r in right_09_3()]).correct
+    assert exercises.check_circular_mean(lambda a, w: np.array([circ_right(a, w)])).correct
     # the function may modify its inputs in place
     def in_place(a, b):
         a -= b
         a[[0, 2]] = wrap(a[[0, 2]])
         return a
 
-    assert exercises.check_coop_ekf_residual(in_place).correct
-    assert exercises.check_coop_ekf_residual(in_place).correct  # the check's own inputs are unchanged
+    assert exercises.check_ekf_residual(in_place).correct
+    assert exercises.check_ekf_residual(in_place).correct  # the check's own inputs are unchanged
 
 
 def _wrong_cases():
@@ -517,7 +520,7 @@ def test_rejects_wrong_answer_with_its_hint(exercise, mistake, updates_15s, upda
 
 
 def test_all_samples_counts_as_all_steps():
-    fb = exercises.check_coop_sparse_nis_bounds(avg_bounds(5, coop.SPARSE_SAMPLES, 0.05))
+    fb = exercises.check_sparse_nis_bounds(avg_bounds(5, coop.SPARSE_SAMPLES, 0.05))
     assert HINTS["13.2"]["all_steps"] in fb.message
 
 
@@ -613,21 +616,21 @@ def test_hints_never_contain_the_answer(updates_15s, updates_every10):
 
 
 def test_parameters_other_than_the_exercise_defaults():
-    assert exercises.check_coop_mc_bounds(np.array([avg_bounds(6, 50, 0.05), avg_bounds(5, 50, 0.05)]), n_runs=50).correct
-    assert exercises.check_coop_F_dt(expm(0.1 * A_fd(coop.FDT_X)), dT=0.1).correct
+    assert exercises.check_mc_bounds(np.array([avg_bounds(6, 50, 0.05), avg_bounds(5, 50, 0.05)]), n_runs=50).correct
+    assert exercises.check_F_dt(expm(0.1 * A_fd(coop.FDT_X)), dt=0.1).correct
     x = np.array([1.0, 2.0, 0.3, -5.0, 7.0, 1.2])
-    assert exercises.check_coop_measurement(h_by_hand(x), x=x).correct
-    assert exercises.check_coop_step_map(arc_radius(x, P.u0, 0.1), x=x, u=P.u0, dT=0.1).correct
-    assert exercises.check_coop_sparse_nis_bounds(avg_bounds(5, 50, 0.05), every=20).correct
+    assert exercises.check_measurement(h_by_hand(x), x=x).correct
+    assert exercises.check_step_map(arc_radius(x, P.u0, 0.1), x=x, u=P.u0, dt=0.1).correct
+    assert exercises.check_sparse_nis_bounds(avg_bounds(5, 50, 0.05), every=20).correct
 
 
 @pytest.mark.parametrize("call,name", [
-    (lambda: exercises.check_coop_mc_bounds(None, n_runs=1), "n_runs"),
-    (lambda: exercises.check_coop_step_map(None, dT=-0.1), "dT"),
-    (lambda: exercises.check_coop_step_map(None, x=[1.0, 2.0]), "x"),
-    (lambda: exercises.check_coop_obs_rank(None, windows=(10,)), "windows"),
-    (lambda: exercises.check_coop_ekf_F(None, t=0.05), "t"),
-    (lambda: exercises.check_coop_sparse_nis_bounds(None, every=1), "every"),
+    (lambda: exercises.check_mc_bounds(None, n_runs=1), "n_runs"),
+    (lambda: exercises.check_step_map(None, dt=-0.1), "dt"),
+    (lambda: exercises.check_step_map(None, x=[1.0, 2.0]), "x"),
+    (lambda: exercises.check_obs_rank(None, windows=(10,)), "windows"),
+    (lambda: exercises.check_ekf_F(None, t=0.05), "t"),
+    (lambda: exercises.check_sparse_nis_bounds(None, every=1), "every"),
 ])
 def test_bad_parameters_raise_value_error(call, name):
     with pytest.raises(ValueError, match=name):

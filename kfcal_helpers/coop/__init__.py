@@ -8,13 +8,25 @@ Modules:
 * :mod:`.model` -- :class:`CoopParams`, dynamics, the exact closed-form one-step map,
   nominal trajectory, measurement function, angle wrapping, Jacobians A, B, C,
   F, G, H, the observability matrix over a window;
-* :mod:`.simulation` -- truth model (state noise Omega w_k, w_k ~ N(0, Qtrue), Omega = dT I by default) and seeded logs;
-* :mod:`.filters` -- LKF, EKF, UKF on filterpy, with a common :class:`FilterResult`;
+* :mod:`.simulation` -- truth model (state noise Omega w_k, w_k ~ N(0, Qtrue), Omega = dt I by default):
+  :func:`simulate` returns a :class:`Simulation` (one run or many; ``.log()`` is a course-format log);
+* :mod:`.filters` -- LKF, EKF, UKF on filterpy: ``run_xkf(y, setup, truth=None)`` with a
+  :class:`FilterSetup` (params, Q, the :class:`MeasurementModel`, settings), :func:`run_filter` the
+  short entry, a common :class:`FilterResult`;
 * :mod:`.montecarlo` -- truth-model tests (NEES/NIS with chi-square bounds);
 * :mod:`.data` -- course log loader/writer (CSV folder or ``.mat``); :mod:`.course` -- the
   ``KFCAL_COURSE_LOG`` setting;
-* :mod:`.plots` -- figures of the notebooks; :mod:`.tables` -- fixed-precision text output; :mod:`.cli` -- ``python -m kfcal_helpers coop``.
+* :mod:`.plots` -- figures of the notebooks; :mod:`.tables` -- fixed-precision text output; :mod:`.cli` -- ``python -m kfcal_helpers coop``;
+* :mod:`.figures` -- the lecture figures; :mod:`.demos` -- the live demo of notebook 18;
+  :mod:`.mistakes` -- the rows of the mistakes table (notebook 14); :mod:`.exercises` -- the
+  exercise checks of notebooks 08-13 and 18.
+
+:data:`PROBLEM` is the problem's entry of :mod:`kfcal_helpers.problems`: its sub-command, lecture
+figures and mistakes.  matplotlib is imported only when a figure is drawn.
 """
+
+from .. import registry
+from . import cli, figures, mistakes
 
 from .course import COURSE_LOG_VARIABLE, course_log, course_log_path
 from .data import CoopLog, load_log, write_log_csv, write_log_mat
@@ -24,11 +36,14 @@ from .filters import (
     UKF_POINTS,
     CoopEKF,
     FilterResult,
+    FilterSetup,
     QScaleFit,
+    SigmaPoints,
     fit_q_scale,
     make_ekf,
     make_lkf,
     make_ukf,
+    run,
     run_ekf,
     run_filter,
     run_lkf,
@@ -41,9 +56,13 @@ from .model import (
     N_MEAS,
     N_STATES,
     NOISE_MODELS,
+    STATE,
     STATE_ANGLES,
     STATE_LABELS,
     CoopParams,
+    MeasurementModel,
+    StateDescriptor,
+    arc,
     discretize,
     dynamics,
     jacobian_A,
@@ -62,19 +81,24 @@ from .model import (
     wrap_measurement,
     wrap_state,
 )
-from .montecarlo import MonteCarloResult, simulate_runs, truth_model_test
-from .simulation import DEFAULT_LOG_SEED, generate_log, simulate_measurements, simulate_truth
+from .montecarlo import MonteCarloResult, truth_model_test
+from .simulation import DEFAULT_LOG_SEED, Simulation, simulate, simulate_measurements, simulate_truth
 from .tables import format_matrix, format_number, format_table
 
 __all__ = [
     "COURSE_LOG_VARIABLE", "course_log", "course_log_path", "CoopLog", "load_log", "write_log_csv", "write_log_mat",
-    "FILTERS", "TUNED_Q_SCALE", "UKF_POINTS", "CoopEKF", "FilterResult", "QScaleFit", "fit_q_scale", "make_ekf", "make_lkf", "make_ukf",
-    "run_ekf", "run_filter", "run_lkf", "run_ukf", "tuned_Q",
-    "MEAS_ANGLES", "MEAS_LABELS", "N_MEAS", "N_STATES", "NOISE_MODELS", "STATE_ANGLES", "STATE_LABELS", "CoopParams",
-    "discretize", "dynamics", "jacobian_A", "jacobian_B", "jacobian_C", "measure", "measurement_mean",
+    "FILTERS", "TUNED_Q_SCALE", "UKF_POINTS", "CoopEKF", "FilterResult", "FilterSetup", "QScaleFit", "SigmaPoints",
+    "fit_q_scale", "make_ekf", "make_lkf", "make_ukf", "run", "run_ekf", "run_filter", "run_lkf", "run_ukf", "tuned_Q",
+    "MEAS_ANGLES", "MEAS_LABELS", "N_MEAS", "N_STATES", "NOISE_MODELS", "STATE", "STATE_ANGLES", "STATE_LABELS",
+    "CoopParams", "MeasurementModel", "StateDescriptor", "arc", "discretize", "dynamics", "jacobian_A", "jacobian_B", "jacobian_C", "measure", "measurement_mean",
     "measurement_residual", "nominal_trajectory", "observability_matrix", "state_add", "state_mean",
     "state_residual", "step", "wrap_angle", "wrap_measurement", "wrap_state",
-    "MonteCarloResult", "simulate_runs", "truth_model_test",
-    "DEFAULT_LOG_SEED", "generate_log", "simulate_measurements", "simulate_truth",
-    "format_matrix", "format_number", "format_table",
+    "MonteCarloResult", "truth_model_test",
+    "DEFAULT_LOG_SEED", "Simulation", "simulate", "simulate_measurements", "simulate_truth",
+    "format_matrix", "format_number", "format_table", "PROBLEM",
 ]
+
+#: the cooperative-localization problem as the command line, ``figures`` and the mistakes table see it
+PROBLEM = registry.Problem(name="coop", title="cooperative localization of a UGV and a UAV (notebooks 08-13, 18)",
+                           add_cli=cli.add_parser, figures=figures.FIGURES, figure_data=figures.figure_data,
+                           mistakes=mistakes.MISTAKES, mistake_row=mistakes.mistake_row)

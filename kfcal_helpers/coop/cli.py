@@ -7,7 +7,7 @@ Examples::
     python -m kfcal_helpers coop --filter lkf --runs 50 --seed 1 --json
 
 The filter's process noise is ``Q = S * Qtrue`` (covariance of the DT noise ``w_k``, which enters
-the state through ``Omega = dT * I``).  By default S is the filter's scale tuned by the truth-model
+the state through ``Omega = dt * I``).  By default S is the filter's scale tuned by the truth-model
 tests (``TUNED_Q_SCALE``, ``q_scale_source: "truth-model test"``), for a course log too: the NIS
 reported on the log is then a test of that Q.  ``--q-scale auto`` (opt-in) instead fits S to the
 log: the maximum-likelihood scale of ``Q_SCALE_LADDER``, reported with the range of ladder scales
@@ -20,14 +20,13 @@ import time
 
 import numpy as np
 
-from ..consistency import chi2_bounds
 from ..output import dumps_json
 from ..validation import MAX_SEED, cli_float, cli_int, require_int, require_positive
 from .data import load_log
-from .filters import FILTERS, TUNED_Q_SCALE, fit_q_scale, run_filter
-from .model import N_MEAS, CoopParams
+from .filters import FILTERS, TUNED_Q_SCALE, fit_q_scale, log_summary, run_filter
+from .model import CoopParams
 from .montecarlo import truth_model_test
-from .simulation import DEFAULT_LOG_SEED, generate_log
+from .simulation import DEFAULT_LOG_SEED, simulate
 
 __all__ = ["add_parser", "run", "log_summary", "Q_SCALE_LADDER", "parse_q_scale", "SOURCE_TEST", "SOURCE_FIT",
            "SOURCE_GIVEN"]
@@ -78,21 +77,6 @@ def add_parser(subparsers):
     return p
 
 
-def log_summary(result, alpha: float = 0.05) -> dict:
-    """Time-averaged NIS (and NEES when the truth is known) of one run, with their bounds."""
-    n_meas = int(np.isfinite(result.nis).sum())
-    if n_meas == 0:
-        raise ValueError("log: it holds no measurement (every ydata column is NaN)")
-    lo, hi = chi2_bounds(N_MEAS, n_meas, alpha)
-    nis = result.time_average_nis()
-    out = {"nis_time_average": nis, "nis_bounds": [lo, hi], "nis_inside": bool(lo <= nis <= hi),
-           "measurements": n_meas}
-    if result.nees is not None:
-        out["nees_time_average"] = float(result.nees.mean())
-        out["nees_bounds"] = list(chi2_bounds(6, result.nees.size, alpha))
-    return out
-
-
 def run(args) -> int:
     """Run the sub-command; returns the exit code (ValueError for bad input)."""
     every = require_int("--every", args.every, minimum=1)
@@ -106,7 +90,7 @@ def run(args) -> int:
             raise ValueError("q-scale 'auto' fits Q to a log; a truth-model Monte Carlo needs a number or the default")
         params = CoopParams()
         scale = TUNED_Q_SCALE[args.filter] if q_scale is None else q_scale
-        mc = truth_model_test(args.filter, runs, seed=0 if args.seed is None else args.seed, params=params,
+        mc = truth_model_test(params, runs, 0 if args.seed is None else args.seed, filter=args.filter,
                               alpha=args.alpha, every=every, Q=scale * params.Qtrue)
         out = mc.summary()
         out["q_scale"] = scale
@@ -115,7 +99,7 @@ def run(args) -> int:
         if args.log is not None:
             log = load_log(args.log, argname="--log")
         else:
-            log = generate_log(seed=DEFAULT_LOG_SEED if args.seed is None else args.seed)
+            log = simulate(seed=DEFAULT_LOG_SEED if args.seed is None else args.seed).log()
         if every > 1:
             log = log.every(every)
         params = log.params()

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from .data import CoopLog, load_log
 from .model import CoopParams
-from .simulation import DEFAULT_LOG_SEED, generate_log
+from .simulation import DEFAULT_LOG_SEED, simulate
 
 __all__ = ["COURSE_LOG_VARIABLE", "course_log_path", "course_log"]
 
@@ -38,6 +38,6 @@ def course_log(params: CoopParams | None = None, seed: int = DEFAULT_LOG_SEED) -
     if path is not None:
         return load_log(path), True, f"course log found ({COURSE_LOG_VARIABLE}): {path}"
     why = "is not set" if not os.environ.get(COURSE_LOG_VARIABLE, "").strip() else "names no existing path"
-    log = generate_log(params, seed=seed)
+    log = simulate(params, seed=seed).log()
     return log, False, (f"no course log ({COURSE_LOG_VARIABLE} {why}): using a generated log "
                         f"(seed {seed}, same noise model) instead")

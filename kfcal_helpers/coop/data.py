@@ -15,12 +15,12 @@ from __future__ import annotations
 
 import io
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..validation import require_covariance, require_int
+from ..validation import require_covariance, require_instance, require_int
 from .model import N_MEAS, N_STATES, CoopParams
 
 __all__ = ["LOG_VARIABLES", "CoopLog", "load_log", "write_log_csv", "write_log_mat"]
@@ -72,7 +72,7 @@ class CoopLog:
             object.__setattr__(self, "truth", truth)
 
     @property
-    def dT(self) -> float:
+    def dt(self) -> float:
         """Sampling interval, s."""
         return float(self.t[1] - self.t[0])
 
@@ -81,9 +81,9 @@ class CoopLog:
         return self.t.size
 
     def params(self, base: CoopParams | None = None) -> CoopParams:
-        """``base`` (default: the course's) with this log's dT, duration, Qtrue and Rtrue."""
+        """``base`` (default: the course's) with this log's dt, duration, Qtrue and Rtrue."""
         base = base if base is not None else CoopParams()
-        return base.replace(dT=self.dT, duration=self.dT * (self.n_samples - 1), Qtrue=self.Qtrue, Rtrue=self.Rtrue)
+        return replace(base, dt=self.dt, duration=self.dt * (self.n_samples - 1), Qtrue=self.Qtrue, Rtrue=self.Rtrue)
 
     def every(self, m: int) -> "CoopLog":
         """A copy that keeps the measurements of every ``m``-th step (k = 0, m, 2m, ...), NaN elsewhere."""
@@ -194,8 +194,7 @@ def _course_arrays(log: CoopLog) -> dict:
 
 
 def _check_log(log) -> None:
-    if not isinstance(log, CoopLog):
-        raise ValueError(f"log must be a CoopLog, got {type(log).__name__}")
+    require_instance("log", log, CoopLog)
 
 
 def write_log_csv(log: CoopLog, folder) -> Path:

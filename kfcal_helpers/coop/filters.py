@@ -1,11 +1,11 @@
 """LKF, EKF and UKF for cooperative localization, on filterpy's classes.
 
 * LKF -- ``filterpy.kalman.KalmanFilter`` on the perturbation ``dx = x - x_nom`` about
-  the nominal trajectory, with ``F_k = I + dT A(x_nom_k)`` and ``H_k = C(x_nom_k)``.
+  the nominal trajectory, with ``F_k = I + dt A(x_nom_k)`` and ``H_k = C(x_nom_k)``.
   Its innovation ``(y - y_nom) - H dx-`` is angle-wrapped (fed to filterpy as
   ``z = H dx- + wrapped innovation``, so that filterpy's ``z - H x`` is the wrapped one).
 * EKF -- ``filterpy.kalman.ExtendedKalmanFilter`` whose ``predict_x`` is the exact
-  nonlinear one-step map (filterpy's own is linear), ``F = I + dT A(x_hat)`` at the
+  nonlinear one-step map (filterpy's own is linear), ``F = I + dt A(x_hat)`` at the
   posterior, and ``update(..., residual=...)`` with bearings wrapped.
 * UKF -- ``filterpy.kalman.UnscentedKalmanFilter`` with ``MerweScaledSigmaPoints`` and
   angle-aware ``residual_x``, ``residual_z``, ``x_mean_fn``, ``z_mean_fn`` (circular
@@ -13,14 +13,17 @@
 
 Every filter starts at (x0, P0) at t_0 and, for k = 1..K-1, predicts to t_k and updates
 with ``y_k`` unless that row is NaN (predict only).  A finite ``y_0`` is used at t_0.
-All return a :class:`FilterResult`.  ``Q`` is the filter's covariance of the DT process noise
-``w_k``; it enters through the model's ``Omega`` (``params.Omega``, ``dT * I`` by default), as in the
-truth model: ``P- = F P F^T + Omega Q Omega^T``.
+All return a :class:`FilterResult` (filterpy's names: ``x_prior, P_prior, x_post, P_post, y, S, K``).
 
-Every filter accepts ``measurements=`` (indices of the rows of ``y`` it uses, e.g. ``(0, 1, 2)``
-for the two bearings and the range without the UAV's GPS): the update then uses only those
-components of ``y``, the matching rows of ``h`` and of its Jacobian and the block of ``R``, and the
-NIS has that many degrees of freedom.  The default (all five) is the full filter, unchanged.
+A run is ``run_xkf(y, setup, truth=None)``: the measurements, a :class:`FilterSetup` holding
+everything else (the model ``params``, the filter's ``Q``, the :class:`~.model.MeasurementModel`
+with its ``R``, the initial estimate, the sigma points of the UKF, the mistakes of notebook 14), and
+optionally the true states for the NEES.  ``Q`` is the filter's covariance of the DT process noise
+``w_k``; it enters through the model's ``Omega`` (``params.Omega``, ``dt * I`` by default), as in the
+truth model: ``P- = F P F^T + Omega Q Omega^T``.  A measurement model of some rows of ``y`` (e.g.
+``(0, 1, 2)``, the two bearings and the range without the UAV's GPS: ``measurements=`` of
+:func:`run_filter`) updates with only those components, and the NIS has that many degrees of
+freedom.  :func:`run_filter` is the short entry: it builds the setup from keywords.
 """
 
 from __future__ import annotations
@@ -28,37 +31,31 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cholesky
 from filterpy.kalman import ExtendedKalmanFilter, KalmanFilter, MerweScaledSigmaPoints, UnscentedKalmanFilter
+from scipy.linalg import cholesky
 
+from ..consistency import chi2_bounds as _chi2_bounds
 from ..consistency import nees as _nees
 from ..consistency import nis as _nis
-from ..validation import require_choice, require_covariance, require_positive, require_shape
+from ..validation import require_choice, require_covariance, require_instance, require_positive, require_shape
 from .model import (
-    MEAS_ANGLES,
     N_MEAS,
     N_STATES,
+    STATE,
     CoopParams,
-    _arc,
+    MeasurementModel,
+    arc,
     jacobian_A,
-    jacobian_C,
-    measure,
-    measurement_mean,
-    measurement_residual,
     nominal_trajectory,
+    require_indices,
     require_last_axis,
-    state_add,
-    state_mean,
-    state_residual,
-    wrap_angle,
-    wrap_measurement,
-    wrap_state,
 )
 
 __all__ = [
     "FILTERS",
     "TUNED_Q_SCALE",
     "UKF_POINTS",
+    "SigmaPoints",
     "FilterResult",
     "tuned_Q",
     "FilterSetup",
@@ -69,7 +66,9 @@ __all__ = [
     "run_lkf",
     "run_ekf",
     "run_ukf",
+    "run",
     "run_filter",
+    "log_summary",
     "measurement_subset",
     "robust_sqrt",
     "QScaleFit",
@@ -78,53 +77,88 @@ __all__ = [
 
 FILTERS = ("lkf", "ekf", "ukf")
 
-#: filter Q = scale * Qtrue (covariance of w_k, entering through Omega = dT I), chosen by the
+#: filter Q = scale * Qtrue (covariance of w_k, entering through Omega = dt I), chosen by the
 #: truth-model tests, NEES and NIS together (notebooks 10-12); never tuned on a log.  No scale makes
 #: the LKF's NEES consistent (notebook 10), so it keeps Qtrue.
 TUNED_Q_SCALE = {"lkf": 1.0, "ekf": 1.0, "ukf": 1.0}
 
-#: Merwe scaled sigma points (alpha, beta, kappa) of the UKF (notebook 12)
-UKF_POINTS = {"alpha": 1.0, "beta": 2.0, "kappa": 0.0}
+
+@dataclass(frozen=True)
+class SigmaPoints:
+    """Merwe scaled sigma points of the UKF: ``alpha`` in (0, 1], ``beta``, ``kappa > -6``."""
+
+    alpha: float = 1.0
+    beta: float = 2.0
+    kappa: float = 0.0
+
+    def __post_init__(self):
+        alpha = require_positive("alpha", self.alpha)
+        beta, kappa = float(self.beta), float(self.kappa)
+        if alpha > 1 or N_STATES + kappa <= 0 or not np.isfinite(beta + kappa):
+            raise ValueError(f"alpha must be in (0, 1], beta finite and kappa > -6, got alpha={alpha:g}, "
+                             f"beta={beta:g}, kappa={kappa:g}")
+        object.__setattr__(self, "alpha", alpha)
+        object.__setattr__(self, "beta", beta)
+        object.__setattr__(self, "kappa", kappa)
 
 
-def tuned_Q(name: str, params: CoopParams | None = None) -> np.ndarray:
-    """The tuned filter process noise for filter ``name``: the covariance (6x6) of ``w_k``, which
+#: the UKF's sigma points (notebook 12)
+UKF_POINTS = SigmaPoints()
+
+
+def tuned_Q(filter: str, params: CoopParams | None = None) -> np.ndarray:
+    """The tuned filter process noise of ``filter``: the covariance (6x6) of ``w_k``, which
     enters the state as ``Omega Q Omega^T`` per step."""
-    name = require_choice("filter", name, FILTERS)
+    filter = require_choice("filter", filter, FILTERS)
     p = params if params is not None else CoopParams()
-    return TUNED_Q_SCALE[name] * p.Qtrue
+    return TUNED_Q_SCALE[filter] * p.Qtrue
 
 
 @dataclass(frozen=True, eq=False)
 class FilterResult:
-    """Output of one filter run over K samples.
+    """Output of one filter run over K samples (filterpy's names).
 
     Attributes
     ----------
-    name : str -- "lkf", "ekf" or "ukf"
+    filter : str -- "lkf", "ekf" or "ukf"
     t : (K,) s
-    x : (K, 6) posterior estimates (prior where there was no measurement), headings wrapped
-    P : (K, 6, 6) their covariances
-    z_pred : (K, 5) predicted measurements h(x-) (UKF: the sigma-point mean); NaN without a measurement
-    innovations : (K, 5) wrapped innovations y - z_pred; NaN without a measurement
-    S : (K, 5, 5) innovation covariances; NaN without a measurement
-    nis : (K,) normalized innovation squared; NaN without a measurement
+    x_prior, P_prior : (K, 6), (K, 6, 6) predicted estimate and covariance at t_k (at t_0: x0, P0)
+    x_post, P_post : (K, 6), (K, 6, 6) after the update (the prior where there was no measurement);
+        ``x`` and ``P`` are the same arrays (the estimate at every step); headings wrapped
+    z_pred : (K, 5) predicted measurements h(x-) (UKF: the sigma-point mean)
+    y : (K, 5) wrapped innovations (residuals) ``z - z_pred``
+    S : (K, 5, 5) innovation covariances; K : (K, 6, 5) Kalman gains
+    nis : (K,) normalized innovation squared
     nees : (K,) normalized estimation error squared (headings wrapped), or None without truth
-    measurements : tuple of the rows of y the filter used (default all five); with fewer,
-        ``z_pred``, ``innovations`` and ``S`` are NaN in the unused components and ``nis``
-        has ``len(measurements)`` degrees of freedom
+    measurements : tuple of the rows of the measurements the filter used (default all five)
+
+    ``z_pred``, ``y``, ``S``, ``K`` and ``nis`` are NaN at steps without a measurement, and the first four
+    in the components of the rows not used; ``nis`` has ``len(measurements)`` degrees of freedom.
     """
 
-    name: str
+    filter: str
     t: np.ndarray
-    x: np.ndarray
-    P: np.ndarray
+    x_prior: np.ndarray
+    P_prior: np.ndarray
+    x_post: np.ndarray
+    P_post: np.ndarray
     z_pred: np.ndarray
-    innovations: np.ndarray
+    y: np.ndarray
     S: np.ndarray
+    K: np.ndarray
     nis: np.ndarray
     nees: np.ndarray | None = None
     measurements: tuple = tuple(range(N_MEAS))
+
+    @property
+    def x(self) -> np.ndarray:
+        """The estimate at every step, (K, 6): ``x_post``."""
+        return self.x_post
+
+    @property
+    def P(self) -> np.ndarray:
+        """Its covariance, (K, 6, 6): ``P_post``."""
+        return self.P_post
 
     @property
     def sigma2(self) -> np.ndarray:
@@ -133,7 +167,7 @@ class FilterResult:
 
     def errors(self, truth) -> np.ndarray:
         """Estimation errors ``truth - x`` with the headings wrapped, shape (K, 6)."""
-        return state_residual(truth, self.x)
+        return STATE.residual(truth, self.x)
 
     def time_average_nis(self) -> float:
         """Mean NIS over the steps that had a measurement."""
@@ -150,168 +184,175 @@ class FilterResult:
         return float(-0.5 * np.sum(self.nis[has] + logdet + m * np.log(2.0 * np.pi)))
 
 
-@dataclass(frozen=True, eq=False)
-class FilterSetup:
-    """Validated inputs of a filter run (see :func:`run_filter`)."""
-
-    params: CoopParams
-    y: np.ndarray
-    Q: np.ndarray
-    R: np.ndarray
-    x0: np.ndarray
-    P0: np.ndarray
-
-    @classmethod
-    def build(cls, name, y, params=None, Q=None, R=None, x0=None, P0=None) -> "FilterSetup":
-        p = params if params is not None else CoopParams()
-        y = require_shape("y", y, (None, N_MEAS))
-        if y.shape[0] < 1:
-            raise ValueError("y must hold at least one row")
-        nan = np.isnan(y)
-        if (nan.any(axis=1) & ~nan.all(axis=1)).any() or np.isinf(y).any():
-            raise ValueError("y rows must be all finite or all NaN (a NaN row means predict only)")
-        Q = tuned_Q(name, p) if Q is None else require_covariance("Q", Q, N_STATES)
-        R = p.Rtrue if R is None else require_covariance("R", R, N_MEAS)
-        x0 = p.x0 if x0 is None else require_last_axis("x0", require_shape("x0", x0, (N_STATES,)), N_STATES)
-        P0 = p.P0 if P0 is None else require_covariance("P0", P0, N_STATES)
-        return cls(p, y, np.array(Q), np.array(R), wrap_state(x0), np.array(P0))
-
-
 def measurement_subset(measurements) -> tuple[int, ...] | None:
     """Validate ``measurements=``: None (all five rows of y) or a non-empty sequence of
     distinct integers in 0..4 (0 bearing UGV->UAV, 1 range, 2 bearing UAV->UGV, 3 UAV GPS east,
     4 UAV GPS north).  Returns None for all five, else the sorted tuple; ValueError otherwise."""
     if measurements is None:
         return None
-    allowed = ("measurements must be a non-empty sequence of distinct integers in 0..4 (rows of y: "
-               "0 bearing UGV->UAV, 1 range, 2 bearing UAV->UGV, 3 UAV GPS east, 4 UAV GPS north)")
-    if isinstance(measurements, (str, bytes)):
-        raise ValueError(f"{allowed}, got {measurements!r}")
-    try:
-        items = list(measurements)
-    except TypeError:
-        raise ValueError(f"{allowed}, got {measurements!r}") from None
-    ok = all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < N_MEAS for i in items)
-    if not items or not ok or len({int(i) for i in items}) != len(items):
-        raise ValueError(f"{allowed}, got {measurements!r}")
-    idx = tuple(sorted(int(i) for i in items))
+    idx = require_indices("measurements", measurements, N_MEAS,
+                          " (rows of y: 0 bearing UGV->UAV, 1 range, 2 bearing UAV->UGV, 3 UAV GPS east, 4 UAV GPS north)")
     return None if idx == tuple(range(N_MEAS)) else idx
 
 
-class _Subset:
-    """The measurement functions restricted to the rows ``idx`` of y (bearings still wrapped)."""
+@dataclass(frozen=True, eq=False)
+class FilterSetup:
+    """Everything a filter run needs besides the measurements, validated on construction.
 
-    def __init__(self, idx, R):
-        self.idx = list(idx)
-        self.m = len(self.idx)
-        self.angles = [j for j, i in enumerate(self.idx) if i in MEAS_ANGLES]
-        self.R = R[np.ix_(self.idx, self.idx)]
+    filter : "lkf", "ekf" or "ukf" -- the filter :func:`run` runs (and whose tuned Q is the default)
+    params : CoopParams -- model, nominal, dt, noise model (default: the course's)
+    Q : (6, 6) filter covariance of w_k (default :func:`tuned_Q`)
+    measurement : MeasurementModel -- h, its Jacobian, the rows of y used and R (default: all five
+        rows, ``params.Rtrue``)
+    x0, P0 : initial estimate (6,) and covariance (6, 6) (default ``params.x0``, ``params.P0``)
+    points : SigmaPoints -- the UKF's (default :data:`UKF_POINTS`)
+    wrap_innovations : EKF; False passes filterpy's default ``residual=np.subtract`` (the mistake of
+        notebooks 11 and 14: bearing innovations jump by 2 pi across +-pi)
+    subtract_nominal : LKF; False compares ``H dx-`` with the total y (the mistake of notebook 14)
 
-    def residual(self, a, b):
-        d = np.subtract(a, b, dtype=float)
-        if self.angles:
-            d[..., self.angles] = wrap_angle(d[..., self.angles])
-        return d
+    :meth:`build` takes ``R`` and ``measurements`` (rows of y) instead of a measurement model.
+    """
 
-    def mean(self, sigmas, weights):  # the UKF's z_mean_fn: circular mean of the bearings
-        sigmas = np.asarray(sigmas, dtype=float)
-        w = np.asarray(weights, dtype=float)
-        mean = np.matmul(w, sigmas)
-        if self.angles:
-            a = sigmas[..., self.angles]
-            mean[..., self.angles] = np.arctan2(np.matmul(w, np.sin(a)), np.matmul(w, np.cos(a)))
-        return mean
+    filter: str = "ekf"
+    params: CoopParams | None = None
+    Q: np.ndarray | None = None
+    measurement: MeasurementModel | None = None
+    x0: np.ndarray | None = None
+    P0: np.ndarray | None = None
+    points: SigmaPoints = UKF_POINTS
+    wrap_innovations: bool = True
+    subtract_nominal: bool = True
 
-    def h(self, x):
-        return measure(x)[..., self.idx]
+    def __post_init__(self):
+        name = require_choice("filter", self.filter, FILTERS)
+        p = require_instance("params", self.params, CoopParams, allow_none=True) or CoopParams()
+        Q = tuned_Q(name, p) if self.Q is None else require_covariance("Q", self.Q, N_STATES)
+        model = require_instance("measurement", self.measurement, MeasurementModel, allow_none=True)
+        x0 = p.x0 if self.x0 is None else require_last_axis("x0", require_shape("x0", self.x0, (N_STATES,)),
+                                                               N_STATES)
+        P0 = p.P0 if self.P0 is None else require_covariance("P0", self.P0, N_STATES)
+        require_instance("points", self.points, SigmaPoints)
+        for flag in ("wrap_innovations", "subtract_nominal"):
+            if not isinstance(getattr(self, flag), (bool, np.bool_)):
+                raise ValueError(f"{flag} must be True or False, got {getattr(self, flag)!r}")
+        values = {"filter": name, "params": p, "Q": np.array(Q),
+                  "measurement": model if model is not None else MeasurementModel(p.Rtrue),
+                  "x0": STATE.wrap(x0), "P0": np.array(P0)}
+        for key, value in values.items():
+            object.__setattr__(self, key, value)
 
-    def h_column(self, x):
-        return measure(x[:, 0])[self.idx].reshape(self.m, 1)
-
-    def C_column(self, x):
-        return jacobian_C(x[:, 0])[self.idx]
-
-    def residual_column(self, a, b):
-        return self.residual(a[:, 0], b[:, 0]).reshape(self.m, 1)
-
-
-def _finish(name, setup, x, P, zp, nu, S, truth, measurements=None) -> FilterResult:
-    K = setup.y.shape[0]
-    nis = np.full(K, np.nan)
-    if measurements is None:
-        idx = list(range(N_MEAS))
-        has = np.isfinite(nu).all(axis=1)
-        nis[has] = _nis(nu[has], S[has])
-    else:  # the NIS of the rows used: len(measurements) degrees of freedom
-        idx = list(measurements)
-        has = np.isfinite(nu[:, idx]).all(axis=1)
-        nis[has] = _nis(nu[has][:, idx], S[has][:, idx][:, :, idx])
-    nees = None
-    if truth is not None:
-        truth = require_shape("truth", truth, (K, N_STATES))
-        nees = _nees(state_residual(truth, x), P)
-    return FilterResult(name, setup.params.dT * np.arange(K), x, P, zp, nu, S, nis, nees, tuple(idx))
+    @classmethod
+    def build(cls, filter: str = "ekf", params: CoopParams | None = None, *, R=None, measurements=None,
+              **settings) -> "FilterSetup":
+        """A setup with the measurement model of ``R`` (5x5, default ``params.Rtrue``) restricted to the
+        rows ``measurements`` of y (default all five; see :func:`measurement_subset`); the other
+        settings (Q, x0, P0, points, wrap_innovations, subtract_nominal) as in the class."""
+        p = require_instance("params", params, CoopParams, allow_none=True) or CoopParams()
+        model = MeasurementModel(p.Rtrue if R is None else require_covariance("R", R, N_MEAS))
+        idx = measurement_subset(measurements)
+        if idx is not None:
+            model = model.subset(idx)
+        return cls(filter, p, measurement=model, **settings)
 
 
-def _storage(K):
-    return (np.empty((K, N_STATES)), np.empty((K, N_STATES, N_STATES)), np.full((K, N_MEAS), np.nan),
-            np.full((K, N_MEAS), np.nan), np.full((K, N_MEAS, N_MEAS), np.nan))
+def _measurements(y) -> np.ndarray:
+    """Validate the measurements ``y`` (K, 5): rows all finite or all NaN (NaN: predict only)."""
+    y = require_shape("y", y, (None, N_MEAS))
+    if y.shape[0] < 1:
+        raise ValueError("y must hold at least one row")
+    nan = np.isnan(y)
+    if (nan.any(axis=1) & ~nan.all(axis=1)).any() or np.isinf(y).any():
+        raise ValueError("y rows must be all finite or all NaN (a NaN row means predict only)")
+    return y
+
+
+def _setup(setup, filter) -> FilterSetup:
+    if setup is None:
+        return FilterSetup(filter)
+    return require_instance("setup", setup, FilterSetup)
+
+
+class _Storage:
+    """The per-step arrays of a run, NaN where a step or a component has no measurement."""
+
+    def __init__(self, K, rows):
+        self.used = list(rows)
+        if len(self.used) == N_MEAS:  # basic slices: faster than index lists in the per-step loop
+            self.rows, self.block = slice(None), (slice(None), slice(None))
+        else:
+            self.rows, self.block = self.used, np.ix_(self.used, self.used)
+        self.x_prior, self.x_post = np.empty((K, N_STATES)), np.empty((K, N_STATES))
+        self.P_prior, self.P_post = np.empty((K, N_STATES, N_STATES)), np.empty((K, N_STATES, N_STATES))
+        self.z_pred, self.y = np.full((K, N_MEAS), np.nan), np.full((K, N_MEAS), np.nan)
+        self.S, self.K = np.full((K, N_MEAS, N_MEAS), np.nan), np.full((K, N_STATES, N_MEAS), np.nan)
+
+    def update(self, k, z_pred, y, S, K):
+        """Keep the update at step k (arrays of the rows used)."""
+        self.z_pred[k, self.rows], self.y[k, self.rows] = z_pred, y
+        self.S[k][self.block] = S
+        self.K[k][:, self.rows] = K
+
+    def finish(self, setup, truth) -> FilterResult:
+        K = self.y.shape[0]
+        idx = self.used
+        nis = np.full(K, np.nan)
+        has = np.isfinite(self.y[:, idx]).all(axis=1)
+        y_used, S_used = self.y[has], self.S[has]
+        if len(idx) < N_MEAS:  # the components of the rows used
+            y_used, S_used = y_used[:, idx], S_used[:, idx][:, :, idx]
+        nis[has] = _nis(y_used, S_used)
+        nees = None
+        if truth is not None:
+            truth = require_shape("truth", truth, (K, N_STATES))
+            nees = _nees(STATE.residual(truth, self.x_post), self.P_post)
+        return FilterResult(setup.filter, setup.params.dt * np.arange(K), self.x_prior, self.P_prior, self.x_post,
+                            self.P_post, self.z_pred, self.y, self.S, self.K, nis, nees, tuple(idx))
 
 
 # ---------------------------------------------------------------------------
 # LKF
-def make_lkf(setup: FilterSetup, measurements=None) -> KalmanFilter:
-    """filterpy KalmanFilter on dx = x - x_nom, initialised at dx0 = x0 - x_nom_0.
-
-    ``measurements`` (optional, see :func:`measurement_subset`): a filter for that subset
-    of the rows of y (``dim_z = len(measurements)``, R the matching block).
-    """
-    idx = measurement_subset(measurements)
-    kf = KalmanFilter(dim_x=N_STATES, dim_z=N_MEAS if idx is None else len(idx))
-    kf.x = state_residual(setup.x0, setup.params.x0).reshape(N_STATES, 1)
+def make_lkf(setup: FilterSetup) -> KalmanFilter:
+    """filterpy KalmanFilter on dx = x - x_nom, initialised at dx0 = x0 - x_nom_0, with the setup's
+    Q (entering as ``Omega Q Omega^T``) and R (``dim_z`` = the measurement model's rows)."""
+    kf = KalmanFilter(dim_x=N_STATES, dim_z=setup.measurement.dim)
+    kf.x = STATE.residual(setup.x0, setup.params.x0).reshape(N_STATES, 1)
     kf.P = setup.P0.copy()
     kf.Q = setup.params.process_noise(setup.Q)
-    kf.R = setup.R.copy() if idx is None else setup.R[np.ix_(idx, idx)].copy()
+    kf.R = setup.measurement.R.copy()
     return kf
 
 
-def run_lkf(y, params=None, Q=None, R=None, x0=None, P0=None, truth=None,
-            subtract_nominal: bool = True, measurements=None) -> FilterResult:
-    """Linearized KF about the nominal trajectory; arguments as in :func:`run_filter`.
+def run_lkf(y, setup: FilterSetup | None = None, truth=None) -> FilterResult:
+    """Linearized KF about the nominal trajectory on measurements ``y`` (K, 5) (see :func:`run_filter`).
 
-    ``subtract_nominal=False`` builds a known mistake (notebook 14): the innovation
+    With ``setup.subtract_nominal=False`` a known mistake (notebook 14): the innovation
     ``y - H dx-`` without the nominal measurement ``y*`` subtracted.
     """
-    s = FilterSetup.build("lkf", y, params, Q, R, x0, P0)
-    idx = measurement_subset(measurements)
-    p, K = s.params, s.y.shape[0]
+    y = _measurements(y)
+    s = _setup(setup, "lkf")
+    p, model, K = s.params, s.measurement, y.shape[0]
     xnom = nominal_trajectory(p, K)
-    ynom = measure(xnom)
-    F = np.eye(N_STATES) + p.dT * jacobian_A(xnom, p.u0, p.L)  # (K, 6, 6), F[k] maps k -> k+1
-    H = jacobian_C(xnom)  # (K, 5, 6)
-    kf = make_lkf(s, idx)
-    x, P, zp, nu, S = _storage(K)
+    ynom = model.h(xnom)
+    F = np.eye(N_STATES) + p.dt * jacobian_A(xnom, p.u0, p.L)  # (K, 6, 6), F[k] maps k -> k+1
+    H = model.jacobian(xnom)  # (K, m, 6)
+    kf = make_lkf(s)
+    out = _Storage(K, model.rows)
+    rows = out.rows
     for k in range(K):
         if k > 0:
             kf.predict(F=F[k - 1])
-        if not np.isnan(s.y[k, 0]):
-            zk = wrap_measurement(ynom[k] + H[k] @ kf.x[:, 0])  # predicted measurement, bearings wrapped
-            if not subtract_nominal:
-                zk = H[k] @ kf.x[:, 0]  # the mistake: the perturbation model compared with the total y
-            innov = measurement_residual(s.y[k], zk)
-            if idx is None:
-                kf.update((H[k] @ kf.x[:, 0] + innov).reshape(N_MEAS, 1), H=H[k])
-                assert kf.x.shape == (N_STATES, 1) and kf.y.shape == (N_MEAS, 1)
-                zp[k], nu[k], S[k] = zk, kf.y[:, 0], kf.S
-            else:  # only the rows idx of y, H and R
-                rows = list(idx)
-                kf.update((H[k][rows] @ kf.x[:, 0] + innov[rows]).reshape(len(rows), 1), H=H[k][rows])
-                assert kf.x.shape == (N_STATES, 1) and kf.y.shape == (len(rows), 1)
-                zp[k, rows], nu[k, rows] = zk[rows], kf.y[:, 0]
-                S[k][np.ix_(rows, rows)] = kf.S
-        x[k], P[k] = kf.x[:, 0], kf.P
-    x = wrap_state(xnom + x)
-    return _finish("lkf", s, x, P, zp, nu, S, truth, idx)
+        out.x_prior[k], out.P_prior[k] = kf.x[:, 0], kf.P
+        if not np.isnan(y[k, 0]):
+            dz = H[k] @ kf.x[:, 0]
+            zk = model.wrap(ynom[k] + dz) if s.subtract_nominal else dz  # the mistake: H dx- against the total y
+            innov = model.residual(y[k, rows], zk)
+            kf.update((dz + innov).reshape(model.dim, 1), H=H[k])  # filterpy's z - H x is the wrapped innovation
+            assert kf.x.shape == (N_STATES, 1) and kf.y.shape == (model.dim, 1)
+            out.update(k, zk, kf.y[:, 0], kf.S, kf.K)
+        out.x_post[k], out.P_post[k] = kf.x[:, 0], kf.P
+    out.x_prior[:] = STATE.wrap(xnom + out.x_prior)
+    out.x_post[:] = STATE.wrap(xnom + out.x_post)
+    return out.finish(s, truth)
 
 
 # ---------------------------------------------------------------------------
@@ -320,77 +361,71 @@ class CoopEKF(ExtendedKalmanFilter):
     """filterpy's ExtendedKalmanFilter with the nonlinear closed-form propagation.
 
     ``predict()`` calls :meth:`predict_x` and then ``P = F P F^T + Q``: here
-    ``predict_x`` first sets ``F = I + dT A(x_hat_k, u)`` at the posterior and then
+    ``predict_x`` first sets ``F = I + dt A(x_hat_k, u)`` at the posterior and then
     moves the mean with the exact map ``x_hat_{k+1}^- = phi(x_hat_k, u)``.
+    :meth:`hx`, :meth:`H_jacobian` and :meth:`residual_z` are the setup's measurement model on
+    filterpy's column vectors, for ``update(z, HJacobian=ekf.H_jacobian, Hx=ekf.hx, residual=ekf.residual_z)``.
     """
 
-    def __init__(self, params: CoopParams):
-        super().__init__(dim_x=N_STATES, dim_z=N_MEAS)
-        self.params = params
+    def __init__(self, setup: FilterSetup):
+        self.setup = require_instance("setup", setup, FilterSetup)
+        super().__init__(dim_x=N_STATES, dim_z=setup.measurement.dim)
+        self.params = setup.params
 
     def predict_x(self, u=0):
         p = self.params
         xk = self.x[:, 0]
-        self.F = np.eye(N_STATES) + p.dT * jacobian_A(xk, p.u0, p.L)
-        self.x = _arc(xk, p.u0, p.dT, p.L).reshape(N_STATES, 1)
+        self.F = np.eye(N_STATES) + p.dt * jacobian_A(xk, p.u0, p.L)
+        self.x = arc(xk, p.u0, p.dt, p.L).reshape(N_STATES, 1)
 
+    def hx(self, x):
+        """h of the state column x (6, 1), a column (m, 1)."""
+        return self.setup.measurement.h(x[:, 0]).reshape(-1, 1)
 
-def _h_column(x):
-    return measure(x[:, 0]).reshape(N_MEAS, 1)
+    def H_jacobian(self, x):
+        """Jacobian (m, 6) of h at the state column x (6, 1)."""
+        return self.setup.measurement.jacobian(x[:, 0])
 
-
-def _C_column(x):
-    return jacobian_C(x[:, 0])
-
-
-def _residual_column(a, b):
-    return measurement_residual(a[:, 0], b[:, 0]).reshape(N_MEAS, 1)
+    def residual_z(self, a, b):
+        """``a - b`` for measurement columns (m, 1), bearings wrapped."""
+        return self.setup.measurement.residual(a[:, 0], b[:, 0]).reshape(-1, 1)
 
 
 def make_ekf(setup: FilterSetup) -> CoopEKF:
     """A :class:`CoopEKF` initialised at (x0, P0) with the setup's Q and R."""
-    ekf = CoopEKF(setup.params)
+    ekf = CoopEKF(setup)
     ekf.x = setup.x0.reshape(N_STATES, 1).copy()
     ekf.P = setup.P0.copy()
     ekf.Q = setup.params.process_noise(setup.Q)
-    ekf.R = setup.R.copy()
+    ekf.R = setup.measurement.R.copy()
     return ekf
 
 
-def run_ekf(y, params=None, Q=None, R=None, x0=None, P0=None, truth=None,
-            wrap_innovations: bool = True, measurements=None) -> FilterResult:
-    """Extended KF; arguments as in :func:`run_filter`.
+def run_ekf(y, setup: FilterSetup | None = None, truth=None) -> FilterResult:
+    """Extended KF on measurements ``y`` (K, 5) (see :func:`run_filter`).
 
-    ``wrap_innovations=False`` passes filterpy's default ``residual=np.subtract``: only
-    to demonstrate the pitfall (bearing innovations jump by 2 pi across +-pi).
+    With ``setup.wrap_innovations=False`` filterpy's default ``residual=np.subtract``: only to
+    demonstrate the pitfall (bearing innovations jump by 2 pi across +-pi).
     """
-    s = FilterSetup.build("ekf", y, params, Q, R, x0, P0)
-    idx = measurement_subset(measurements)
-    K = s.y.shape[0]
+    y = _measurements(y)
+    s = _setup(setup, "ekf")
+    model, K = s.measurement, y.shape[0]
     ekf = make_ekf(s)
-    x, P, zp, nu, S = _storage(K)
-    if idx is None:
-        rows, m, Hj, hx, res, R_used = slice(None), N_MEAS, _C_column, _h_column, _residual_column, None
-    else:  # only the rows idx of y, h, its Jacobian and R
-        sub = _Subset(idx, s.R)
-        rows, m, Hj, hx, res, R_used = list(idx), len(idx), sub.C_column, sub.h_column, sub.residual_column, sub.R
+    residual = ekf.residual_z if s.wrap_innovations else np.subtract
+    out = _Storage(K, model.rows)
+    rows = out.rows
     for k in range(K):
         if k > 0:
             ekf.predict()
-        if not np.isnan(s.y[k, 0]):
-            yk = s.y[k, rows]
-            ekf.update(yk.reshape(m, 1), HJacobian=Hj, Hx=hx, R=R_used,
-                       residual=res if wrap_innovations else np.subtract)
-            assert ekf.x.shape == (N_STATES, 1) and ekf.y.shape == (m, 1)
-            ekf.x = wrap_state(ekf.x[:, 0]).reshape(N_STATES, 1)
-            if idx is None:
-                nu[k], S[k] = ekf.y[:, 0], ekf.S
-                zp[k] = measurement_residual(s.y[k], nu[k])  # h(x-), from y - nu
-            else:
-                nu[k, rows], S[k][np.ix_(rows, rows)] = ekf.y[:, 0], ekf.S
-                zp[k, rows] = sub.residual(yk, ekf.y[:, 0])  # h(x-) on the rows used
-        x[k], P[k] = ekf.x[:, 0], ekf.P
-    return _finish("ekf", s, x, P, zp, nu, S, truth, idx)
+        out.x_prior[k], out.P_prior[k] = ekf.x[:, 0], ekf.P
+        if not np.isnan(y[k, 0]):
+            yk = y[k, rows]
+            ekf.update(yk.reshape(model.dim, 1), HJacobian=ekf.H_jacobian, Hx=ekf.hx, residual=residual)
+            assert ekf.x.shape == (N_STATES, 1) and ekf.y.shape == (model.dim, 1)
+            ekf.x = STATE.wrap(ekf.x[:, 0]).reshape(N_STATES, 1)
+            out.update(k, model.residual(yk, ekf.y[:, 0]), ekf.y[:, 0], ekf.S, ekf.K)  # h(x-) from y - nu
+        out.x_post[k], out.P_post[k] = ekf.x[:, 0], ekf.P
+    return out.finish(s, truth)
 
 
 # ---------------------------------------------------------------------------
@@ -438,92 +473,97 @@ def robust_sqrt(M) -> np.ndarray:
                      f"{eps / 10:.1e} on its diagonal (the filter diverged)")
 
 
-def make_ukf(setup: FilterSetup, alpha=None, beta=None, kappa=None) -> UnscentedKalmanFilter:
-    """filterpy UnscentedKalmanFilter with Merwe scaled sigma points and the angle functions."""
-    p = setup.params
-    alpha = require_positive("alpha", UKF_POINTS["alpha"] if alpha is None else alpha)
-    beta = float(UKF_POINTS["beta"] if beta is None else beta)
-    kappa = float(UKF_POINTS["kappa"] if kappa is None else kappa)
-    if alpha > 1 or N_STATES + kappa <= 0:
-        raise ValueError(f"alpha must be in (0, 1] and kappa > -6, got alpha={alpha:g}, kappa={kappa:g}")
+def make_ukf(setup: FilterSetup) -> UnscentedKalmanFilter:
+    """filterpy UnscentedKalmanFilter with the setup's Merwe scaled sigma points, its measurement
+    model (h, circular z mean, wrapped residual, R) and the state's angle functions."""
+    p, model, pts = setup.params, setup.measurement, setup.points
     # sigma points x +- columns of sqrt((n+lambda) P) need no wrapping: f and h are 2 pi-periodic in the headings
-    points = MerweScaledSigmaPoints(N_STATES, alpha=alpha, beta=beta, kappa=kappa)
+    points = MerweScaledSigmaPoints(N_STATES, alpha=pts.alpha, beta=pts.beta, kappa=pts.kappa)
     points.sqrt = robust_sqrt  # symmetrize P, Cholesky with jitter if needed
 
     def fx(sigmas, dt):  # all sigma points at once, shape (13, 6)
-        return _arc(sigmas, p.u0, dt, p.L)
+        return arc(sigmas, p.u0, dt, p.L)
 
-    ukf = _CoopUKF(dim_x=N_STATES, dim_z=N_MEAS, dt=p.dT, hx=measure, fx=fx, points=points,
-                   x_mean_fn=state_mean, z_mean_fn=measurement_mean,
-                   residual_x=state_residual, residual_z=measurement_residual, state_add=state_add)
+    ukf = _CoopUKF(dim_x=N_STATES, dim_z=model.dim, dt=p.dt, hx=model.h, fx=fx, points=points,
+                   x_mean_fn=STATE.mean, z_mean_fn=model.mean,
+                   residual_x=STATE.residual, residual_z=model.residual, state_add=STATE.add)
     ukf.x = setup.x0.copy()
     ukf.P = setup.P0.copy()
     ukf.Q = setup.params.process_noise(setup.Q)
-    ukf.R = setup.R.copy()
+    ukf.R = model.R.copy()
     return ukf
 
 
-def run_ukf(y, params=None, Q=None, R=None, x0=None, P0=None, truth=None,
-            alpha=None, beta=None, kappa=None, measurements=None) -> FilterResult:
-    """Unscented KF; arguments as in :func:`run_filter`, plus the sigma-point parameters."""
-    s = FilterSetup.build("ukf", y, params, Q, R, x0, P0)
-    idx = measurement_subset(measurements)
-    K = s.y.shape[0]
-    ukf = make_ukf(s, alpha, beta, kappa)
-    rows, m = slice(None), N_MEAS
-    if idx is not None:  # h, the z mean and residual (bearings still circular) and R on the rows idx
-        sub = _Subset(idx, s.R)
-        rows, m = list(idx), len(idx)
-        ukf.hx, ukf.z_mean, ukf.residual_z, ukf.R = sub.h, sub.mean, sub.residual, sub.R
-    x, P, zp, nu, S = _storage(K)
+def run_ukf(y, setup: FilterSetup | None = None, truth=None) -> FilterResult:
+    """Unscented KF on measurements ``y`` (K, 5) (see :func:`run_filter`)."""
+    y = _measurements(y)
+    s = _setup(setup, "ukf")
+    model, K = s.measurement, y.shape[0]
+    ukf = make_ukf(s)
+    out = _Storage(K, model.rows)
+    rows = out.rows
     for k in range(K):
         if k > 0:
             ukf.predict()
             ukf.P = 0.5 * (ukf.P + ukf.P.T)
-        elif not np.isnan(s.y[0, 0]):  # update at t_0: sigma points of the initial (x0, P0)
+        elif not np.isnan(y[0, 0]):  # update at t_0: sigma points of the initial (x0, P0)
             ukf.sigmas_f = ukf.points_fn.sigma_points(ukf.x, ukf.P)
-        if not np.isnan(s.y[k, 0]):
-            yk = s.y[k, rows]
+        out.x_prior[k], out.P_prior[k] = ukf.x, ukf.P
+        if not np.isnan(y[k, 0]):
+            yk = y[k, rows]
             ukf.update(yk)
-            assert ukf.x.shape == (N_STATES,) and ukf.y.shape == (m,)
+            assert ukf.x.shape == (N_STATES,) and ukf.y.shape == (model.dim,)
             ukf.P = 0.5 * (ukf.P + ukf.P.T)
-            if idx is None:
-                nu[k], S[k] = ukf.y, ukf.S
-                zp[k] = measurement_residual(s.y[k], ukf.y)  # the sigma-point mean z-
-            else:
-                nu[k, rows], S[k][np.ix_(rows, rows)] = ukf.y, ukf.S
-                zp[k, rows] = sub.residual(yk, ukf.y)  # the sigma-point mean z- on the rows used
-        x[k], P[k] = ukf.x, ukf.P
-    return _finish("ukf", s, x, P, zp, nu, S, truth, idx)
+            out.update(k, model.residual(yk, ukf.y), ukf.y, ukf.S, ukf.K)  # the sigma-point mean z-
+        out.x_post[k], out.P_post[k] = ukf.x, ukf.P
+    return out.finish(s, truth)
 
 
 _RUNNERS = {"lkf": run_lkf, "ekf": run_ekf, "ukf": run_ukf}
 
 
-def run_filter(name: str, y, params: CoopParams | None = None, Q=None, R=None, x0=None, P0=None,
-               truth=None, measurements=None, **kwargs) -> FilterResult:
-    """Run filter ``name`` ("lkf", "ekf", "ukf") on measurements ``y``.
+def run(y, setup: FilterSetup, truth=None) -> FilterResult:
+    """Run the filter ``setup.filter`` on measurements ``y`` (K, 5), with the true states ``truth``
+    (K, 6) for the NEES if given."""
+    setup = require_instance("setup", setup, FilterSetup)
+    return _RUNNERS[setup.filter](y, setup, truth)
+
+
+def run_filter(filter: str, y, params: CoopParams | None = None, *, truth=None, **settings) -> FilterResult:
+    """Run filter ``filter`` ("lkf", "ekf", "ukf") on measurements ``y``: the short entry.
 
     Parameters
     ----------
-    y : array (K, 5) -- one row per t_k = k dT; an all-NaN row means predict only
-    params : CoopParams -- model, nominal, dT; defaults to the course's
-    Q : (6, 6) filter process noise per step (default :func:`tuned_Q`)
-    R : (5, 5) measurement noise (default ``params.Rtrue``)
-    x0, P0 : initial estimate (6,) and covariance (6, 6) (default ``params.x0``, ``params.P0``)
+    y : array (K, 5) -- one row per t_k = k dt; an all-NaN row means predict only
+    params : CoopParams -- model, nominal, dt; defaults to the course's
     truth : (K, 6), optional -- true states, for the NEES
-    measurements : optional sequence of the rows of y to use (distinct integers in 0..4: 0 bearing
-        UGV->UAV, 1 range, 2 bearing UAV->UGV, 3 UAV GPS east, 4 UAV GPS north); default all five.
-        The update uses only those components (rows of h and its Jacobian, block of R) and the
-        NIS has ``len(measurements)`` degrees of freedom.  ValueError if malformed.
-    kwargs : UKF only: alpha, beta, kappa; EKF only: wrap_innovations; LKF only: subtract_nominal
+    settings : keywords of :meth:`FilterSetup.build`: ``Q`` (6, 6) (default :func:`tuned_Q`), ``R`` (5, 5)
+        (default ``params.Rtrue``), ``x0``, ``P0`` (default ``params.x0``, ``params.P0``),
+        ``measurements`` (rows of y to use: distinct integers in 0..4, 0 bearing UGV->UAV, 1 range,
+        2 bearing UAV->UGV, 3 UAV GPS east, 4 UAV GPS north; default all five), ``points`` (UKF:
+        :class:`SigmaPoints`), ``wrap_innovations`` (EKF), ``subtract_nominal`` (LKF)
 
     Returns
     -------
     FilterResult
     """
-    name = require_choice("filter", name, FILTERS)
-    return _RUNNERS[name](y, params, Q, R, x0, P0, truth, measurements=measurements, **kwargs)
+    return run(y, FilterSetup.build(filter, params, **settings), truth)
+
+
+def log_summary(result, alpha: float = 0.05) -> dict:
+    """Time-averaged NIS (and NEES when the truth is known) of one run, with their bounds: the NIS has
+    as many degrees of freedom as the filter used measurements (``result.measurements``)."""
+    n_meas = int(np.isfinite(result.nis).sum())
+    if n_meas == 0:
+        raise ValueError("log: it holds no measurement (every ydata column is NaN)")
+    lo, hi = _chi2_bounds(len(result.measurements), n_meas, alpha)
+    nis = result.time_average_nis()
+    out = {"nis_time_average": nis, "nis_bounds": [lo, hi], "nis_inside": bool(lo <= nis <= hi),
+           "measurements": n_meas}
+    if result.nees is not None:
+        out["nees_time_average"] = float(result.nees.mean())
+        out["nees_bounds"] = list(_chi2_bounds(N_STATES, result.nees.size, alpha))
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -554,26 +594,24 @@ class QScaleFit:
         return self.scales[(self.nis_averages >= lo) & (self.nis_averages <= hi)]
 
 
-def fit_q_scale(name: str, y, scales, params: CoopParams | None = None, alpha: float = 0.05,
-                **kwargs) -> QScaleFit:
+def fit_q_scale(filter: str, y, scales, params: CoopParams | None = None, *, alpha: float = 0.05,
+                **settings) -> QScaleFit:
     """Maximum-likelihood fit of the scale s of ``Q = s * Qtrue`` to the log ``y`` over ``scales``.
 
     Runs the filter once per scale and keeps the innovation log-likelihood
     (:meth:`FilterResult.log_likelihood`) and the time-averaged NIS; ``best`` maximizes the
     likelihood.  ``inside`` lists the scales whose NIS falls inside the one-run bounds at ``alpha``
-    (often many: the NIS alone cannot pick Q).  kwargs go to :func:`run_filter`.
+    (often many: the NIS alone cannot pick Q).  settings go to :func:`run_filter`.
     """
-    from ..consistency import chi2_bounds
-
-    name = require_choice("filter", name, FILTERS)
+    filter = require_choice("filter", filter, FILTERS)
     p = params if params is not None else CoopParams()
     scales = np.array([require_positive("scales", s) for s in np.atleast_1d(scales)], dtype=float)
     if scales.size == 0:
         raise ValueError("scales must hold at least one value")
-    results = [run_filter(name, y, p, Q=s * p.Qtrue, **kwargs) for s in scales]
+    results = [run_filter(filter, y, p, Q=s * p.Qtrue, **settings) for s in scales]
     ll = np.array([r.log_likelihood() for r in results])
     nis = np.array([r.time_average_nis() for r in results])
     n = int(np.isfinite(results[0].nis).sum())
-    bounds = chi2_bounds(len(results[0].measurements), n, alpha)
-    return QScaleFit(name, scales, ll, nis, bounds, float(scales[int(np.argmax(ll))]))
+    bounds = _chi2_bounds(len(results[0].measurements), n, alpha)
+    return QScaleFit(filter, scales, ll, nis, bounds, float(scales[int(np.argmax(ll))]))
 

@@ -14,7 +14,7 @@ Every function accepts arrays with leading axes: ``x`` of shape (..., 6),
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -26,6 +26,10 @@ __all__ = [
     "STATE_ANGLES",
     "MEAS_ANGLES",
     "STATE_LABELS",
+    "StateDescriptor",
+    "STATE",
+    "MeasurementModel",
+    "require_indices",
     "MEAS_LABELS",
     "NOISE_MODELS",
     "CoopParams",
@@ -39,6 +43,7 @@ __all__ = [
     "state_residual",
     "measurement_residual",
     "dynamics",
+    "arc",
     "step",
     "nominal_trajectory",
     "measure",
@@ -63,9 +68,9 @@ MEAS_LABELS = (r"bearing UGV$\to$UAV [rad]", "range [m]", r"bearing UAV$\to$UGV 
 
 
 #: how the DT process noise w_k ~ N(0, Q) enters the state, x_{k+1} = f_d(x_k, u_k) + Omega w_k:
-#: "dT" -- Omega = dT * I (the course's model: per-step state noise dT^2 Q); "identity" -- Omega = I
+#: "dt" -- Omega = dt * I (the course's model: per-step state noise dt^2 Q); "identity" -- Omega = I
 #: (per-step state noise Q, a known mistake kept as a named variant)
-NOISE_MODELS = ("dT", "identity")
+NOISE_MODELS = ("dt", "identity")
 
 
 def _diag(*values):
@@ -80,13 +85,13 @@ def _vector(*values):
 class CoopParams:
     """All inputs of the cooperative-localization problem, validated on construction.
 
-    Defaults are the course's: ``L = 0.5 m``, ``dT = 0.1 s``, 100 s, nominal
+    Defaults are the course's: ``L = 0.5 m``, ``dt = 0.1 s``, 100 s, nominal
     ``x0 = [10, 0, pi/2, -60, 0, -pi/2]``, ``u0 = [2, -pi/18, 12, pi/25]``,
     noise covariances ``Qtrue`` (6x6, of the DT process noise ``w_k``) and ``Rtrue`` (5x5).
 
     ``noise_model`` says how ``w_k`` enters the state, ``x_{k+1} = f_d(x_k, u_k) + Omega w_k``:
-    ``"dT"`` (default, the course's model) has ``Omega = dT * I``, so the state receives noise of
-    covariance ``Omega Qtrue Omega^T = dT^2 Qtrue`` per step; ``"identity"`` has ``Omega = I``
+    ``"dt"`` (default, the course's model) has ``Omega = dt * I``, so the state receives noise of
+    covariance ``Omega Qtrue Omega^T = dt^2 Qtrue`` per step; ``"identity"`` has ``Omega = I``
     (``Qtrue`` per step, a named variant for the mistake of notebook 14).  The truth simulation and
     every filter use the same ``Omega`` (:meth:`process_noise`).
     ``P0`` (6x6) is the covariance of the initial state about ``x0``: the truth-model
@@ -95,24 +100,24 @@ class CoopParams:
     """
 
     L: float = 0.5  #: UGV wheelbase, m
-    dT: float = 0.1  #: sampling interval, s
+    dt: float = 0.1  #: sampling interval, s
     duration: float = 100.0  #: length of a run, s
     x0: np.ndarray = _vector(10.0, 0.0, np.pi / 2, -60.0, 0.0, -np.pi / 2)  #: nominal initial state
     u0: np.ndarray = _vector(2.0, -np.pi / 18, 12.0, np.pi / 25)  #: nominal (constant) control
     Qtrue: np.ndarray = _diag(0.001, 0.001, 0.01, 0.001, 0.001, 0.01)  #: process noise per step
     Rtrue: np.ndarray = _diag(0.0225, 64.0, 0.04, 36.0, 36.0)  #: measurement noise
     P0: np.ndarray = _diag(1.0, 1.0, 0.01, 1.0, 1.0, 0.01)  #: initial covariance (m^2, rad^2)
-    noise_model: str = "dT"  #: how w_k enters the state: "dT" (Omega = dT I) or "identity" (Omega = I)
+    noise_model: str = "dt"  #: how w_k enters the state: "dt" (Omega = dt I) or "identity" (Omega = I)
 
     def __post_init__(self):
         if self.noise_model not in NOISE_MODELS:
             raise ValueError(f"noise_model must be one of {', '.join(repr(m) for m in NOISE_MODELS)}, "
                              f"got {self.noise_model!r}")
-        for name in ("L", "dT", "duration"):
+        for name in ("L", "dt", "duration"):
             object.__setattr__(self, name, require_positive(name, getattr(self, name)))
-        steps = self.duration / self.dT
+        steps = self.duration / self.dt
         if abs(steps - round(steps)) > 1e-9 * max(steps, 1.0) or round(steps) < 1:
-            raise ValueError(f"duration must be a whole number (>= 1) of dT = {self.dT:g} s, got {self.duration:g} s")
+            raise ValueError(f"duration must be a whole number (>= 1) of dt = {self.dt:g} s, got {self.duration:g} s")
         arrays = {
             "x0": require_shape("x0", self.x0, (N_STATES,)),
             "u0": require_shape("u0", self.u0, (4,)),
@@ -132,18 +137,18 @@ class CoopParams:
 
     @property
     def n_samples(self) -> int:
-        """Number of samples t_k = k dT, k = 0..n_samples-1 (1001 for the defaults)."""
-        return int(round(self.duration / self.dT)) + 1
+        """Number of samples t_k = k dt, k = 0..n_samples-1 (1001 for the defaults)."""
+        return int(round(self.duration / self.dt)) + 1
 
     @property
     def t(self) -> np.ndarray:
         """Sample times, s, shape (n_samples,)."""
-        return self.dT * np.arange(self.n_samples)
+        return self.dt * np.arange(self.n_samples)
 
     @property
     def Omega(self) -> np.ndarray:
-        """Noise input matrix ``Omega`` (6x6): ``dT * I`` for ``noise_model="dT"``, ``I`` for "identity"."""
-        scale = self.dT if self.noise_model == "dT" else 1.0
+        """Noise input matrix ``Omega`` (6x6): ``dt * I`` for ``noise_model="dt"``, ``I`` for "identity"."""
+        scale = self.dt if self.noise_model == "dt" else 1.0
         return scale * np.eye(N_STATES)
 
     def process_noise(self, Q=None) -> np.ndarray:
@@ -152,15 +157,6 @@ class CoopParams:
         Q = self.Qtrue if Q is None else require_covariance("Q", Q, N_STATES)
         Om = self.Omega
         return Om @ Q @ Om.T
-
-    def replace(self, **changes) -> "CoopParams":
-        """A copy with some fields changed (validated again)."""
-        values = {f.name: getattr(self, f.name) for f in fields(self)}
-        unknown = set(changes) - set(values)
-        if unknown:
-            raise ValueError(f"changes must name fields of CoopParams, got {sorted(unknown)}")
-        values.update(changes)
-        return CoopParams(**values)
 
 
 def require_last_axis(name: str, array, n: int) -> np.ndarray:
@@ -177,8 +173,8 @@ def require_last_axis(name: str, array, n: int) -> np.ndarray:
 # Angles
 _TWO_PI = 2.0 * np.pi
 # the angle components as basic slices (much faster than index lists in the filters' inner loops)
-_STATE_ANGLE_SLICE = slice(2, 6, 3)
-_MEAS_ANGLE_SLICE = slice(0, 3, 2)
+_STATE_ANGLE_SLICE = slice(2, 6, 3)  # STATE_ANGLES
+_MEAS_ANGLE_SLICE = slice(0, 3, 2)  # MEAS_ANGLES
 
 
 def wrap_angle(a):
@@ -186,12 +182,22 @@ def wrap_angle(a):
     return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), _TWO_PI)
 
 
+def _angle_slice(angles) -> slice:
+    """The angle components ``angles`` (sorted indices) as a basic slice (start, stop, step)."""
+    if not angles:
+        return slice(0, 0, 1)
+    step = angles[1] - angles[0] if len(angles) > 1 else 1
+    if any(b - a != step for a, b in zip(angles, angles[1:])):
+        raise ValueError(f"angles must be evenly spaced indices, got {angles}")
+    return slice(angles[0], angles[-1] + 1, step)
+
+
 def _wrap_components(v, sl, copy=True):
     v = np.array(v, dtype=float) if copy else v
     if v.ndim == 1:  # one vector (the UKF calls this ~50 times a step): Python floats are faster
         for i in range(sl.start, sl.stop, sl.step):
             v[i] = math.pi - (math.pi - float(v[i])) % _TWO_PI
-    else:
+    elif sl.stop > sl.start:
         v[..., sl] = np.pi - np.mod(np.pi - v[..., sl], _TWO_PI)
     return v
 
@@ -244,6 +250,48 @@ def measurement_residual(a, b):
     return _wrap_components(np.subtract(a, b, dtype=float), _MEAS_ANGLE_SLICE, copy=False)
 
 
+@dataclass(frozen=True, eq=False)
+class StateDescriptor:
+    """The layout of a vector whose components ``angles`` are angles (rad, wrapped to (-pi, pi]):
+    its wrap, its residual ``a - b``, ``x + dx`` and the weighted (circular for the angles) mean of
+    points, as the UKF needs them.  :data:`STATE` describes the coop state.
+
+    n : int -- dimension; angles : sorted tuple of the angle components (evenly spaced);
+    labels : plot labels with units, one per component
+    """
+
+    n: int
+    angles: tuple = ()
+    labels: tuple = ()
+
+    def __post_init__(self):
+        angles = tuple(int(i) for i in self.angles)
+        if angles != tuple(sorted(set(angles))) or any(not 0 <= i < self.n for i in angles):
+            raise ValueError(f"angles must be sorted distinct indices in 0..{self.n - 1}, got {self.angles}")
+        object.__setattr__(self, "angles", angles)
+        object.__setattr__(self, "_slice", _angle_slice(angles))
+
+    def wrap(self, v):
+        """Copy of ``v`` (..., n) with the angle components wrapped to (-pi, pi]."""
+        return _wrap_components(v, self._slice)
+
+    def residual(self, a, b):
+        """``a - b`` (..., n) with the angle differences wrapped."""
+        return _wrap_components(np.subtract(a, b, dtype=float), self._slice, copy=False)
+
+    def add(self, x, dx):
+        """``x + dx`` (..., n) with the angles wrapped (the UKF's ``state_add``)."""
+        return _wrap_components(np.add(x, dx, dtype=float), self._slice, copy=False)
+
+    def mean(self, points, weights):
+        """Weighted mean of ``points`` (..., m, n) with ``weights`` (m,): circular for the angles."""
+        return _weighted_mean(points, weights, self._slice)
+
+
+#: the coop state [xi_g, eta_g, theta_g, xi_a, eta_a, theta_a]: headings 2 and 5 are angles
+STATE = StateDescriptor(N_STATES, STATE_ANGLES, STATE_LABELS)
+
+
 # ---------------------------------------------------------------------------
 # Dynamics
 def _controls(u, L):
@@ -263,17 +311,18 @@ def dynamics(x, u, L: float = 0.5):
                                         va * np.cos(x[..., 5]), va * np.sin(x[..., 5]), wa), axis=-1)
 
 
-def _arc(x, u, dT, L):
-    """Closed-form flow of f over ``dT`` (s, scalar or array broadcast with x's leading axes)."""
+def arc(x, u, dt, L):
+    """Closed-form flow of f over ``dt`` (s, scalar or array broadcast with x's leading axes), without
+    checks: ``x`` (..., 6) and ``u`` (..., 4) float arrays, ``L > 0`` (the fast core of :func:`step`)."""
     vg, wg, va, wa = _controls(u, L)
-    shape = np.broadcast_shapes(x.shape[:-1], np.shape(dT), np.shape(vg))
+    shape = np.broadcast_shapes(x.shape[:-1], np.shape(dt), np.shape(vg))
     out = np.empty(shape + (N_STATES,))
     for i, v, w in ((0, vg, wg), (3, va, wa)):
         th = x[..., i + 2]
-        half = 0.5 * w * dT
-        # chord of the arc: v dT sinc(w dT / 2) along the mean heading th + w dT / 2;
+        half = 0.5 * w * dt
+        # chord of the arc: v dt sinc(w dt / 2) along the mean heading th + w dt / 2;
         # np.sinc(z) = sin(pi z)/(pi z) is exact for the straight line w = 0.
-        d = v * dT * np.sinc(half / np.pi)
+        d = v * dt * np.sinc(half / np.pi)
         mid = th + half
         out[..., i] = x[..., i] + d * np.cos(mid)
         out[..., i + 1] = x[..., i + 1] + d * np.sin(mid)
@@ -281,8 +330,8 @@ def _arc(x, u, dT, L):
     return _wrap_components(out, _STATE_ANGLE_SLICE, copy=False)
 
 
-def step(x, u, dT: float = 0.1, L: float = 0.5):
-    """Exact noise-free one-step map for a control held constant over ``dT`` (s).
+def step(x, u, dt: float = 0.1, L: float = 0.5):
+    """Exact noise-free one-step map for a control held constant over ``dt`` (s).
 
     Each vehicle moves on a circular arc (yaw rate ``v_g tan(phi_g)/L`` for the UGV,
     ``omega_a`` for the UAV), or on a straight line when its yaw rate is zero.
@@ -290,26 +339,26 @@ def step(x, u, dT: float = 0.1, L: float = 0.5):
     Parameters
     ----------
     x : array (..., 6)   states at t
-    u : array (..., 4) or (4,)   controls held over [t, t + dT]
-    dT, L : float > 0   step, s; wheelbase, m
+    u : array (..., 4) or (4,)   controls held over [t, t + dt]
+    dt, L : float > 0   step, s; wheelbase, m
 
     Returns
     -------
-    array (..., 6): states at t + dT, headings wrapped.
+    array (..., 6): states at t + dt, headings wrapped.
     """
-    return _arc(require_last_axis("x", x, N_STATES), require_last_axis("u", u, 4),
-                require_positive("dT", dT), require_positive("L", L))
+    return arc(require_last_axis("x", x, N_STATES), require_last_axis("u", u, 4),
+                require_positive("dt", dt), require_positive("L", L))
 
 
 def nominal_trajectory(params: CoopParams | None = None, n_samples: int | None = None) -> np.ndarray:
-    """Nominal states at t_k = k dT from the closed-form arcs (no integration), shape (K, 6).
+    """Nominal states at t_k = k dt from the closed-form arcs (no integration), shape (K, 6).
 
     ``K = params.n_samples`` unless ``n_samples`` is given.
     """
     p = params if params is not None else CoopParams()
     K = p.n_samples if n_samples is None else require_int("n_samples", n_samples, minimum=1)
-    t = p.dT * np.arange(K)
-    out = _arc(np.broadcast_to(p.x0, (t.size, N_STATES)), p.u0, t, p.L)
+    t = p.dt * np.arange(K)
+    out = arc(np.broadcast_to(p.x0, (t.size, N_STATES)), p.u0, t, p.L)
     out[0] = wrap_state(p.x0)
     return out
 
@@ -390,34 +439,123 @@ def jacobian_C(x) -> np.ndarray:
     return C
 
 
-def jacobian_step(x, u, dT: float = 0.1, L: float = 0.5) -> np.ndarray:
+def require_indices(name: str, value, n: int, what: str = "") -> tuple[int, ...]:
+    """``value`` as a sorted tuple of distinct integers in 0..n-1 (a non-empty sequence, in any order);
+    ValueError naming ``name`` (and ``what`` they index, if given) otherwise."""
+    allowed = f"{name} must be a non-empty sequence of distinct integers in 0..{n - 1}{what}"
+    if isinstance(value, (str, bytes)):
+        raise ValueError(f"{allowed}, got {value!r}")
+    try:
+        items = list(value)
+    except TypeError:
+        raise ValueError(f"{allowed}, got {value!r}") from None
+    ok = all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < n for i in items)
+    if not items or not ok or len({int(i) for i in items}) != len(items):
+        raise ValueError(f"{allowed}, got {value!r}")
+    return tuple(sorted(int(i) for i in items))
+
+
+@dataclass(frozen=True, eq=False)
+class MeasurementModel:
+    """The measurement model of a filter: ``h``, its Jacobian, which components are bearings, and ``R``.
+
+    ``rows`` are the rows of the full measurement ``y = [bearing UGV->UAV, range, bearing UAV->UGV,
+    UAV east, UAV north]`` (0..4) this model measures, in that order; the default is all five.
+    :meth:`subset` gives the model of some of its rows (the matching rows of h and of its Jacobian,
+    the block of R).  Every method takes states with leading axes, ``x`` of shape (..., 6).
+
+    R : (m, m) measurement-noise covariance of the rows used (m = ``len(rows)``)
+    rows : sorted tuple of distinct integers in 0..4
+    """
+
+    R: np.ndarray
+    rows: tuple = tuple(range(N_MEAS))
+
+    def __post_init__(self):
+        rows = self.rows
+        ok = (not isinstance(rows, (str, bytes)) and len(rows) > 0
+              and all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < N_MEAS
+                      for i in rows))
+        if not ok or list(rows) != sorted({int(i) for i in rows}):
+            raise ValueError(f"rows must be a sorted non-empty tuple of distinct integers in 0..4, got {rows!r}")
+        rows = tuple(int(i) for i in rows)
+        R = require_covariance("R", self.R, len(rows)).copy()
+        R.setflags(write=False)
+        object.__setattr__(self, "rows", rows)
+        object.__setattr__(self, "R", R)
+        object.__setattr__(self, "_all", rows == tuple(range(N_MEAS)))
+        object.__setattr__(self, "_angles", StateDescriptor(len(rows), self.angles))
+
+    @property
+    def dim(self) -> int:
+        """Number of measured components m."""
+        return len(self.rows)
+
+    @property
+    def angles(self) -> tuple:
+        """Positions (within ``rows``) of the bearings, which are wrapped."""
+        return tuple(j for j, i in enumerate(self.rows) if i in MEAS_ANGLES)
+
+    @property
+    def labels(self) -> tuple:
+        """Plot labels of the components measured."""
+        return tuple(MEAS_LABELS[i] for i in self.rows)
+
+    def subset(self, idx) -> "MeasurementModel":
+        """The model of the components ``idx`` (positions in this model's ``rows``, e.g. ``(0, 1, 2)``
+        for the two bearings and the range of the full model); ValueError if malformed."""
+        idx = list(require_indices("idx", idx, self.dim))
+        return MeasurementModel(self.R[np.ix_(idx, idx)], tuple(self.rows[i] for i in idx))
+
+    def h(self, x) -> np.ndarray:
+        """Noise-free measurement of the rows used, shape (..., m), bearings wrapped."""
+        return measure(x) if self._all else measure(x)[..., self.rows]
+
+    def jacobian(self, x) -> np.ndarray:
+        """Jacobian of :meth:`h`, shape (..., m, 6)."""
+        return jacobian_C(x) if self._all else jacobian_C(x)[..., self.rows, :]
+
+    def wrap(self, z) -> np.ndarray:
+        """Copy of measurements ``z`` (..., m) with the bearings wrapped."""
+        return self._angles.wrap(z)
+
+    def residual(self, a, b) -> np.ndarray:
+        """``a - b`` for measurements (..., m) with the bearing differences wrapped."""
+        return self._angles.residual(a, b)
+
+    def mean(self, points, weights) -> np.ndarray:
+        """Weighted mean of measurement points (..., k, m): circular for the bearings (the UKF's ``z_mean_fn``)."""
+        return self._angles.mean(points, weights)
+
+
+def jacobian_step(x, u, dt: float = 0.1, L: float = 0.5) -> np.ndarray:
     """Exact DT state Jacobian ``d step(x, u) / dx`` of the closed-form one-step map, shape (..., 6, 6).
 
     The identity plus, for each vehicle, the heading column ``d [-sin(m), cos(m)]`` with ``d`` the
-    chord ``v dT sinc(w dT / 2)`` and ``m = theta + w dT / 2`` its direction.  ``I + dT A`` is its
-    Euler approximation (chord ``v dT`` along ``theta``): both agree to first order in ``dT``, but only
+    chord ``v dt sinc(w dt / 2)`` and ``m = theta + w dt / 2`` its direction.  ``I + dt A`` is its
+    Euler approximation (chord ``v dt`` along ``theta``): both agree to first order in ``dt``, but only
     this one keeps the model's invariance under a rotation of the whole scene.
     """
     x = require_last_axis("x", x, N_STATES)
     u = require_last_axis("u", u, 4)
-    dT, L = require_positive("dT", dT), require_positive("L", L)
+    dt, L = require_positive("dt", dt), require_positive("L", L)
     vg, wg, va, wa = _controls(u, L)
     J = np.zeros(np.broadcast_shapes(x.shape[:-1], np.shape(vg)) + (6, 6))
     J[...] = np.eye(N_STATES)
     for i, v, w in ((0, vg, wg), (3, va, wa)):
-        half = 0.5 * w * dT
-        d = v * dT * np.sinc(half / np.pi)
+        half = 0.5 * w * dt
+        d = v * dt * np.sinc(half / np.pi)
         mid = x[..., i + 2] + half
         J[..., i, i + 2] = -d * np.sin(mid)
         J[..., i + 1, i + 2] = d * np.cos(mid)
     return J
 
 
-def discretize(A, B, C, dT: float = 0.1):
-    """DT matrices ``F = I + dT A``, ``G = dT B``, ``H = C`` (A^2 = 0 for this model, so F = expm(A dT))."""
-    dT = require_positive("dT", dT)
+def discretize(A, B, C, dt: float = 0.1):
+    """DT matrices ``F = I + dt A``, ``G = dt B``, ``H = C`` (A^2 = 0 for this model, so F = expm(A dt))."""
+    dt = require_positive("dt", dt)
     A = np.asarray(A, dtype=float)
-    return np.eye(A.shape[-1]) + dT * A, dT * np.asarray(B, dtype=float), np.asarray(C, dtype=float)
+    return np.eye(A.shape[-1]) + dt * A, dt * np.asarray(B, dtype=float), np.asarray(C, dtype=float)
 
 
 def observability_matrix(F, H) -> np.ndarray:

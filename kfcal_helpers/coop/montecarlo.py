@@ -1,12 +1,12 @@
 """Truth-model tests: Monte Carlo NEES and NIS of any of the three filters.
 
 Each run draws a true initial state from N(x0, P0), simulates the truth with process
-noise Omega w_k, w_k ~ N(0, Qtrue) (Omega = dT I by default, ``params.noise_model``) and measurements with noise N(0, Rtrue)
+noise Omega w_k, w_k ~ N(0, Qtrue) (Omega = dt I by default, ``params.noise_model``) and measurements with noise N(0, Rtrue)
 (:mod:`~kfcal_helpers.coop.simulation`), and runs the filterpy filter of
 :mod:`~kfcal_helpers.coop.filters` on it.  All runs are drawn up front from one
 seeded generator, so the result does not depend on ``workers``.
 
-With N runs, the run-averaged NEES (dimension 6) and NIS (dimension 5) of a
+With N runs, the run-averaged NEES (dimension 6) and NIS (dimension 5, or the number of measurements used) of a
 consistent filter lie in ``[chi2(alpha/2, N n)/N, chi2(1 - alpha/2, N n)/N]`` at each
 step with probability 1 - alpha (:func:`kfcal_helpers.consistency.chi2_bounds`).
 
@@ -30,15 +30,12 @@ from scipy import stats
 
 from ..consistency import Check, chi2_bounds, inside_fraction
 from ..progress import progress
-from ..validation import require_choice, require_int, require_seed
-from .filters import FILTERS, run_filter
+from ..validation import require_int, require_probability
+from .filters import FilterSetup, run
 from .model import N_MEAS, N_STATES, CoopParams
-from .simulation import simulate_measurements, simulate_truth
+from .simulation import simulate
 
-__all__ = ["COOP_CHECK_NAMES", "MonteCarloResult", "truth_model_test", "simulate_runs", "default_workers"]
-
-#: the checks of :meth:`MonteCarloResult.checks`
-COOP_CHECK_NAMES = ("mean_error", "nees", "nis")
+__all__ = ["MonteCarloResult", "truth_model_test", "default_workers"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,15 +44,16 @@ class MonteCarloResult:
 
     Attributes
     ----------
-    filter : str; runs : int (N); alpha : float; every : int (measurement every ``every`` steps)
+    filter : str; n_runs : int (N); alpha : float; every : int (measurement every ``every`` steps)
     t : (K,) s
     nees : (N, K); nis : (N, K) (NaN at steps without a measurement)
     errors : (N, K, 6) truth - estimate, headings wrapped; sigma2 : (N, K, 6) 2 sqrt(diag P)
     nees_bounds, nis_bounds : (lower, upper) for the run averages
+    measurements : the rows of y the filter used (the NIS has ``len(measurements)`` degrees of freedom)
     """
 
     filter: str
-    runs: int
+    n_runs: int
     alpha: float
     every: int
     t: np.ndarray
@@ -65,6 +63,7 @@ class MonteCarloResult:
     sigma2: np.ndarray
     nees_bounds: tuple
     nis_bounds: tuple
+    measurements: tuple = tuple(range(N_MEAS))
 
     @property
     def nees_mean(self) -> np.ndarray:
@@ -93,7 +92,7 @@ class MonteCarloResult:
         """Index of the median run by time-averaged NEES (the "typical run" of the notebooks;
         for an even N the lower of the two middle runs)."""
         avg = self.nees.mean(axis=1)
-        return int(np.argsort(avg, kind="stable")[(self.runs - 1) // 2])
+        return int(np.argsort(avg, kind="stable")[(self.n_runs - 1) // 2])
 
     @property
     def rms_error(self) -> np.ndarray:
@@ -106,13 +105,13 @@ class MonteCarloResult:
         * ``mean_error``: run mean of each error component (K x 6 entries, m or rad) against 0,
           band ``+-t_{N-1}(1 - a/2) s / sqrt(N)`` with s the ensemble standard deviation;
         * ``nees``: run-averaged NEES per step (K entries) against ``chi2_{6N}/N``;
-        * ``nis``: run-averaged NIS per step with a measurement against ``chi2_{5N}/N``.
+        * ``nis``: run-averaged NIS per step with a measurement against ``chi2_{mN}/N`` (m = the number of measurements used).
 
         The simultaneous band uses ``a = alpha / (all entries of the three checks)``.
         """
-        if self.runs < 2:
-            raise ValueError("runs must be at least 2 for the checks (an ensemble standard deviation)")
-        n = self.runs
+        if self.n_runs < 2:
+            raise ValueError("n_runs must be at least 2 for the checks (an ensemble standard deviation)")
+        n = self.n_runs
         has = np.isfinite(self.nis).all(axis=0)
         n_entries = self.errors[0].size + self.nees.shape[1] + int(has.sum())
         a_sim = self.alpha / n_entries
@@ -122,7 +121,7 @@ class MonteCarloResult:
         t_pt, t_sim = stats.t.ppf(1 - self.alpha / 2, n - 1), stats.t.ppf(1 - a_sim / 2, n - 1)
         out = {"mean_error": Check("mean_error", "run mean of the error, per step and state", mean, zero,
                                    -t_pt * sem, t_pt * sem, -t_sim * sem, t_sim * sem)}
-        for name, dim, values in (("nees", N_STATES, self.nees_mean), ("nis", N_MEAS, self.nis_mean[has])):
+        for name, dim, values in (("nees", N_STATES, self.nees_mean), ("nis", len(self.measurements), self.nis_mean[has])):
             lo, hi = chi2_bounds(dim, n, self.alpha)
             slo, shi = chi2_bounds(dim, n, a_sim)
             full = np.full(values.shape, 1.0)
@@ -134,7 +133,7 @@ class MonteCarloResult:
         """Plain-Python summary (for JSON): bounds, inside fractions, time averages."""
         return {
             "filter": self.filter,
-            "runs": self.runs,
+            "n_runs": self.n_runs,
             "steps": int(self.t.size),
             "alpha": self.alpha,
             "nees_bounds": list(self.nees_bounds),
@@ -155,65 +154,49 @@ def default_workers() -> int:
 
 
 def _one_run(task):
-    name, y, truth, params, kwargs = task
-    r = run_filter(name, y, params, truth=truth, **kwargs)
+    y, truth, setup = task
+    r = run(y, setup, truth)
     return r.nees, r.nis, r.errors(truth), r.sigma2
 
 
-def simulate_runs(n_runs: int, seed: int = 0, params: CoopParams | None = None, every: int = 1):
-    """The truths (N, K, 6) and measurements (N, K, 5) that :func:`truth_model_test` draws for
-    ``n_runs``, ``seed``, ``params`` and ``every`` (so a single run can be re-run and plotted)."""
-    n_runs = require_int("n_runs", n_runs, minimum=1)
-    seed = require_seed("seed", seed, allow_none=False)
-    every = require_int("every", every, minimum=1)
-    p = params if params is not None else CoopParams()
-    rng = np.random.default_rng(seed)
-    truth = simulate_truth(p, rng, n_runs=n_runs)
-    y = simulate_measurements(truth, p, rng)
-    keep = np.zeros(p.n_samples, dtype=bool)
-    keep[::every] = True
-    y[:, ~keep, :] = np.nan
-    return truth, y
-
-
-def truth_model_test(name: str, n_runs: int = 50, seed: int = 0, params: CoopParams | None = None,
-                     alpha: float = 0.05, every: int = 1, workers: int | None = None,
-                     desc: str | None = None, **filter_kwargs) -> MonteCarloResult:
-    """Monte Carlo truth-model test of filter ``name`` ("lkf", "ekf" or "ukf").
+def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0, *, filter: str = "ekf",
+                     alpha: float = 0.05, every: int = 1, workers: int | None = None, desc: str | None = None,
+                     **settings) -> MonteCarloResult:
+    """Monte Carlo truth-model test of ``filter`` ("lkf", "ekf" or "ukf").
 
     Parameters
     ----------
-    n_runs : int >= 1 -- N
-    seed : int -- seed of ``numpy.random.default_rng`` for all truths and measurements
     params : CoopParams -- model, noise, duration (default: the course's, 100 s)
+    n_runs : int >= 1 -- N
+    seed : int or numpy Generator -- all truths and measurements are drawn from it by
+        :func:`~kfcal_helpers.coop.simulation.simulate` (``simulate(params, n_runs, seed, every=every)``
+        gives the same draws, to re-run and plot one run)
+    filter : "lkf", "ekf" or "ukf"
     alpha : float in (0, 1) -- significance of the two-sided chi-square tests
     every : int >= 1 -- keep the measurements of every ``every``-th step only (NaN elsewhere)
     workers : int >= 1 -- processes (default :func:`default_workers`); results do not depend on it
-    filter_kwargs : passed to :func:`~kfcal_helpers.coop.filters.run_filter`: Q, R, x0, P0, and for
-        the UKF ``beta``, ``kappa`` and ``ukf_alpha`` (the sigma-point alpha, renamed here because
-        ``alpha`` is the significance level)
+    settings : the filter's settings, keywords of :meth:`~kfcal_helpers.coop.filters.FilterSetup.build`:
+        Q, R, x0, P0, measurements, points (UKF), wrap_innovations (EKF), subtract_nominal (LKF)
 
     Returns
     -------
     MonteCarloResult
     """
-    name = require_choice("filter", name, FILTERS)
     n_runs = require_int("n_runs", n_runs, minimum=1)
-    seed = require_seed("seed", seed, allow_none=False)
-    every = require_int("every", every, minimum=1)
+    alpha = require_probability("alpha", alpha)
     workers = default_workers() if workers is None else require_int("workers", workers, minimum=1)
+    setup = FilterSetup.build(filter, params, **settings)
+    p = setup.params
+    sim = simulate(p, n_runs, seed, every=every)
     nees_bounds = chi2_bounds(N_STATES, n_runs, alpha)
-    nis_bounds = chi2_bounds(N_MEAS, n_runs, alpha)
-    if "ukf_alpha" in filter_kwargs:
-        filter_kwargs["alpha"] = filter_kwargs.pop("ukf_alpha")
-    p = params if params is not None else CoopParams()
-    truth, y = simulate_runs(n_runs, seed, p, every)
-    tasks = [(name, y[i], truth[i], p, filter_kwargs) for i in range(n_runs)]
-    desc = desc or f"{name.upper()} truth-model test"
+    nis_bounds = chi2_bounds(setup.measurement.dim, n_runs, alpha)
+    tasks = [(sim.y[i], sim.truth[i], setup) for i in range(n_runs)]
+    desc = desc or f"{setup.filter.upper()} truth-model test"
     if workers > 1 and n_runs > 1:
         with ProcessPoolExecutor(max_workers=min(workers, n_runs), mp_context=get_context("fork")) as pool:
             out = list(progress(pool.map(_one_run, tasks), total=n_runs, desc=desc))
     else:
         out = [_one_run(task) for task in progress(tasks, total=n_runs, desc=desc)]
     nees, nis, err, sig = (np.stack(a) for a in zip(*out))
-    return MonteCarloResult(name, n_runs, float(alpha), every, p.t, nees, nis, err, sig, nees_bounds, nis_bounds)
+    return MonteCarloResult(setup.filter, n_runs, alpha, sim.every, p.t, nees, nis, err, sig, nees_bounds,
+                            nis_bounds, setup.measurement.rows)

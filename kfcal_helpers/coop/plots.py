@@ -158,7 +158,7 @@ def plot_consistency(mc, title: str | None = None, figsize=None):
                                    (axes[1], mc.nis_mean, mc.nis_bounds, "NIS")):
         ok = np.isfinite(mean)
         ax.plot(mc.t[ok], mean[ok], ".", ms=0.35 * mpl.rcParams["lines.markersize"],
-                label=f"{name}, mean of {mc.runs} runs")
+                label=f"{name}, mean of {mc.n_runs} runs")
         for b, lab in zip(bounds, (f"χ² bounds, α = {mc.alpha:g}", None)):
             ax.axhline(b, color="k", ls="--", lw=_lw(0.7), label=lab)
         ax.set_xlabel("time $t$ [s]")
@@ -241,8 +241,8 @@ def plot_runs_consistency(mc, title: str | None = None, figsize=None, ylim=None)
         ok = np.isfinite(mean)
         tt = np.broadcast_to(mc.t, values.shape)[:, ok]
         _ = ax.plot(tt.ravel(), values[:, ok].ravel(), ".", ms=ms, color="0.6", alpha=0.3, rasterized=True,
-                    label=f"each of the {mc.runs} runs")
-        _ = ax.plot(mc.t[ok], mean[ok], "-", color="C0", lw=_lw(0.8), label=f"average of {mc.runs} runs")
+                    label=f"each of the {mc.n_runs} runs")
+        _ = ax.plot(mc.t[ok], mean[ok], "-", color="C0", lw=_lw(0.8), label=f"average of {mc.n_runs} runs")
         for b, lab in zip(bounds, (f"χ² bounds of the average, α = {mc.alpha:g}", None)):
             _ = ax.axhline(b, color="k", ls="--", lw=_lw(0.8), label=lab)
         ax.set_yscale("log")

@@ -2,48 +2,52 @@
 
 Noise model (discrete time): ``x_{k+1} = phi(x_k, u0) + Omega w_k`` with ``phi`` the exact
 closed-form one-step map (:func:`~kfcal_helpers.coop.model.step`), ``w_k ~ N(0, Qtrue)`` and
-``Omega = params.Omega`` (``dT * I`` by default, so the state noise per step has covariance
-``dT^2 Qtrue``; ``I`` for ``noise_model="identity"``); ``y_k = h(x_k) + v_k`` with
+``Omega = params.Omega`` (``dt * I`` by default, so the state noise per step has covariance
+``dt^2 Qtrue``; ``I`` for ``noise_model="identity"``); ``y_k = h(x_k) + v_k`` with
 ``v_k ~ N(0, Rtrue)``, bearings wrapped.  The filters use the same ``Omega``
 (``P- = F P F^T + Omega Q Omega^T``).  The true
 initial state is drawn from ``N(x0, P0)``.  Everything is vectorised over runs.
+
+:func:`simulate` is the entry: one seeded draw of truths and measurements, a :class:`Simulation`.
+:func:`simulate_truth` and :func:`simulate_measurements` are its two halves, for a caller that
+brings its own truth or draws the measurements of another one.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.linalg import cholesky
 
-from ..validation import require_int
+from ..validation import as_generator, require_instance, require_int
 from .data import CoopLog
-from .model import N_MEAS, N_STATES, CoopParams, _arc, measure, wrap_measurement, wrap_state
+from .model import N_MEAS, N_STATES, STATE, CoopParams, MeasurementModel, arc
 
-__all__ = ["simulate_truth", "simulate_measurements", "generate_log", "DEFAULT_LOG_SEED"]
+__all__ = ["Simulation", "simulate", "simulate_truth", "simulate_measurements", "DEFAULT_LOG_SEED"]
 
 #: seed of the observation log the notebooks and the CLI generate
 DEFAULT_LOG_SEED = 5044
+
+_MEASURE = MeasurementModel(np.eye(N_MEAS))  # h and its bearings (R unused)
 
 
 def _gaussian(rng, cov, size):
     return rng.standard_normal(size + (cov.shape[0],)) @ cholesky(cov, lower=True).T
 
 
-def _rng(rng):
-    if isinstance(rng, np.random.Generator):
-        return rng
-    if rng is None or isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
-        return np.random.default_rng(rng)
-    raise ValueError(f"rng must be a numpy Generator, an integer seed or None, got {rng!r}")
+def _params(params) -> CoopParams:
+    return require_instance("params", params, CoopParams, allow_none=True) or CoopParams()
 
 
-def simulate_truth(params: CoopParams | None = None, rng=None, n_runs: int | None = None,
+def simulate_truth(params: CoopParams | None = None, seed=None, n_runs: int | None = None,
                    x0=None, process_noise: bool = True) -> np.ndarray:
-    """Noisy true states at t_k = k dT.
+    """Noisy true states at t_k = k dt.
 
     Parameters
     ----------
     params : CoopParams (default: the course's)
-    rng : numpy Generator or int seed
+    seed : int seed or numpy Generator (the draws advance it); None for a fresh unseeded generator
     n_runs : None for one run, else the number of independent runs
     x0 : array (6,) or (n_runs, 6), optional -- initial state(s); default: drawn from N(params.x0, params.P0)
     process_noise : bool -- False gives the noise-free closed-form propagation
@@ -52,8 +56,8 @@ def simulate_truth(params: CoopParams | None = None, rng=None, n_runs: int | Non
     -------
     array (K, 6), or (n_runs, K, 6), headings wrapped.
     """
-    p = params if params is not None else CoopParams()
-    rng = _rng(rng)
+    p = _params(params)
+    rng = np.random.default_rng() if seed is None else as_generator("seed", seed)
     runs = () if n_runs is None else (require_int("n_runs", n_runs, minimum=1),)
     if x0 is None:
         start = p.x0 + _gaussian(rng, p.P0, runs)
@@ -62,31 +66,91 @@ def simulate_truth(params: CoopParams | None = None, rng=None, n_runs: int | Non
     K = p.n_samples
     noise = _gaussian(rng, p.process_noise(), runs + (K - 1,)) if process_noise else np.zeros(runs + (K - 1, N_STATES))
     x = np.empty(runs + (K, N_STATES))
-    x[..., 0, :] = wrap_state(start)
+    x[..., 0, :] = STATE.wrap(start)
     for k in range(K - 1):
-        x[..., k + 1, :] = _arc(x[..., k, :], p.u0, p.dT, p.L) + noise[..., k, :]
-    return wrap_state(x)
+        x[..., k + 1, :] = arc(x[..., k, :], p.u0, p.dt, p.L) + noise[..., k, :]
+    return STATE.wrap(x)
 
 
-def simulate_measurements(truth, params: CoopParams | None = None, rng=None, first: bool = False) -> np.ndarray:
+def simulate_measurements(truth, params: CoopParams | None = None, seed=None, first: bool = False) -> np.ndarray:
     """Noisy measurements ``h(x_k) + v_k``, v_k ~ N(0, Rtrue), bearings wrapped.
 
     ``truth`` has shape (..., K, 6); returns (..., K, 5).  Row k = 0 is NaN (as in
-    the course log) unless ``first`` is True.
+    the course log) unless ``first`` is True.  ``seed``: int or Generator (None: unseeded).
     """
-    p = params if params is not None else CoopParams()
+    p = _params(params)
+    rng = np.random.default_rng() if seed is None else as_generator("seed", seed)
     truth = np.asarray(truth, dtype=float)
-    y = wrap_measurement(measure(truth) + _gaussian(_rng(rng), p.Rtrue, truth.shape[:-1]))
+    y = _MEASURE.wrap(_MEASURE.h(truth) + _gaussian(rng, p.Rtrue, truth.shape[:-1]))
     if not first:
         y[..., 0, :] = np.nan
     return y
 
 
-def generate_log(params: CoopParams | None = None, seed: int = DEFAULT_LOG_SEED) -> CoopLog:
-    """A seeded simulated observation log in the course format, with its truth."""
-    p = params if params is not None else CoopParams()
-    rng = np.random.default_rng(require_int("seed", seed, minimum=0))
-    truth = simulate_truth(p, rng)
+@dataclass(frozen=True, eq=False)
+class Simulation:
+    """One seeded draw of the truth model.
+
+    params : CoopParams; seed : the int seed (None when a Generator was given); every : measurements
+    kept every ``every`` steps (NaN rows elsewhere; row 0 is NaN as in the course log)
+    truth : (K, 6) or (n_runs, K, 6) true states, headings wrapped
+    y : (K, 5) or (n_runs, K, 5) measurements, bearings wrapped
+    """
+
+    params: CoopParams
+    seed: int | None
+    every: int
+    truth: np.ndarray
+    y: np.ndarray
+
+    @property
+    def t(self) -> np.ndarray:
+        """Sample times, s, (K,)."""
+        return self.params.t
+
+    @property
+    def n_runs(self) -> int | None:
+        """Number of runs (None for a single run without a leading axis)."""
+        return None if self.truth.ndim == 2 else self.truth.shape[0]
+
+    def log(self, run: int | None = None) -> CoopLog:
+        """The draw as an observation log in the course format, with its truth (``run``: which run of
+        several)."""
+        if self.n_runs is None:
+            if run is not None:
+                raise ValueError("run must be None for a single-run simulation")
+            truth, y = self.truth, self.y
+        else:
+            run = require_int("run", run, minimum=0) if run is not None else None
+            if run is None or run >= self.n_runs:
+                raise ValueError(f"run must be an integer in 0..{self.n_runs - 1}, got {run!r}")
+            truth, y = self.truth[run], self.y[run]
+        p = self.params
+        source = "simulated" + (f" (seed {self.seed})" if self.seed is not None else "")
+        return CoopLog(p.t, y, p.Qtrue, p.Rtrue, truth=truth, source=source)
+
+
+def simulate(params: CoopParams | None = None, n_runs: int | None = None, seed=DEFAULT_LOG_SEED, *,
+             every: int = 1) -> Simulation:
+    """Truths and measurements of the truth model, from one seeded generator.
+
+    params : CoopParams (default: the course's); n_runs : None for one run (arrays without a run
+    axis), else the number of independent runs; seed : int or numpy Generator (default
+    :data:`DEFAULT_LOG_SEED`, the log of the notebooks and the CLI); every : keep the measurements of
+    every ``every``-th step only (NaN elsewhere).
+
+    The truths are drawn first (initial states, then process noise), then the measurement noise, so a
+    run ``i`` of ``n_runs`` is reproduced by the same seed, and ``n_runs=1`` gives the single run.
+    """
+    p = _params(params)
+    every = require_int("every", every, minimum=1)
+    seed_value = None if isinstance(seed, np.random.Generator) else seed
+    rng = as_generator("seed", seed)
+    truth = simulate_truth(p, rng, n_runs=n_runs)
     y = simulate_measurements(truth, p, rng)
-    assert y.shape == (p.n_samples, N_MEAS)
-    return CoopLog(p.t, y, p.Qtrue, p.Rtrue, truth=truth, source=f"simulated (seed {seed})")
+    assert y.shape == truth.shape[:-1] + (N_MEAS,)
+    if every > 1:
+        keep = np.zeros(p.n_samples, dtype=bool)
+        keep[::every] = True
+        y[..., ~keep, :] = np.nan
+    return Simulation(p, None if seed_value is None else int(seed_value), every, truth, y)

@@ -1,0 +1,185 @@
+"""The cooperative-localization live demo (notebook 18): what one slider move recomputes, and the
+figure it redraws.
+
+:func:`compute_coop_demo` runs the EKF or UKF on a log with ``Q = q_scale * Qtrue`` and a chosen
+subset of the five measurements, and tests the time-averaged NIS against its chi-square bounds
+(dimension = number of measurements used); :class:`CoopDemoFigure` draws the six estimation errors
+with their +-2 sigma bounds, built once so that :meth:`~CoopDemoFigure.update` only replaces the
+data.  :func:`coop_controls` builds the controls; the shared :class:`kfcal_helpers.demos.LiveDemo`
+puts them beside the figure's PNG (:func:`kfcal_helpers.demos.figure_png`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..consistency import chi2_bounds
+from ..demos import new_figure
+from ..validation import require_choice, require_instance, require_positive, require_probability
+from .data import CoopLog
+from .filters import TUNED_Q_SCALE, measurement_subset, run_filter
+from .model import N_MEAS, STATE_LABELS
+
+__all__ = ["COOP_DEMO_FILTERS", "MEASUREMENT_NAMES", "LIVE_FIGSIZE", "CoopDemo", "compute_coop_demo", "CoopDemoFigure",
+           "draw_coop_demo", "coop_controls"]
+
+COOP_DEMO_FILTERS = ("ekf", "ukf")
+#: the five measurements, in the order of the rows of y
+MEASUREMENT_NAMES = ("bearing UGV→UAV", "range", "bearing UAV→UGV", "UAV GPS east", "UAV GPS north")
+#: figure size (inches, at the notebook style's 90 dpi) of the live view: with the controls in a column
+#: beside the image, the whole demo fits a 1280x800 browser window (tests/test_browser_demos.py)
+LIVE_FIGSIZE = (8.4, 4.9)
+
+
+@dataclass(frozen=True, eq=False)
+class CoopDemo:
+    """One redraw of the cooperative-localization demo (K samples).
+
+    filter : "ekf" or "ukf"; q_scale : the filter's Q = q_scale * Qtrue
+    measurements : tuple of the rows of y used; t : (K,) s
+    errors : (K, 6) truth - estimate, headings wrapped; sigma2 : (K, 6) the filter's 2 sqrt(diag P)
+    P : (K, 6, 6) the filter's covariances (m, rad)
+    nis : (K,) NIS (NaN without a measurement); nis_mean : its time average over ``n_nis`` steps
+    nis_bounds : (lower, upper) chi-square bounds of ``nis_mean`` at level ``alpha``, dimension
+        ``len(measurements)``; nees_mean : time-averaged NEES (6 degrees of freedom)
+    """
+
+    #: the arrays that must be finite before the demo is drawn (:class:`kfcal_helpers.demos.LiveDemo`)
+    finite_fields = ("errors", "sigma2", "P", "nis_mean", "nees_mean")
+
+    filter: str
+    q_scale: float
+    measurements: tuple
+    t: np.ndarray
+    errors: np.ndarray
+    sigma2: np.ndarray
+    P: np.ndarray
+    nis: np.ndarray
+    nis_mean: float
+    n_nis: int
+    nis_bounds: tuple[float, float]
+    nees_mean: float
+    alpha: float
+
+    @property
+    def nis_dim(self) -> int:
+        """Degrees of freedom of one NIS: the number of measurements used."""
+        return len(self.measurements)
+
+    @property
+    def nis_inside(self) -> bool:
+        """True when the time-averaged NIS lies inside its chi-square bounds."""
+        return bool(self.nis_bounds[0] <= self.nis_mean <= self.nis_bounds[1])
+
+    def summary(self) -> str:
+        """One line: filter, Q scale, measurements, time-averaged NIS against its bounds."""
+        names = ", ".join(MEASUREMENT_NAMES[i] for i in self.measurements)
+        lo, hi = self.nis_bounds
+        verdict = "inside" if self.nis_inside else ("below" if self.nis_mean < lo else "above")
+        return (f"{self.filter.upper()}, Q = {self.q_scale:.3g} Qtrue, {self.nis_dim} measurements ({names}): "
+                f"time-averaged NIS {self.nis_mean:.3f}, {verdict} [{lo:.3f}, {hi:.3f}] "
+                f"(chi-square, {self.nis_dim} x {self.n_nis} dof / {self.n_nis}); NEES {self.nees_mean:.2f}")
+
+
+def compute_coop_demo(log: CoopLog, filter: str = "ekf", q_scale: float | None = None, measurements=None,
+                      alpha: float = 0.05) -> CoopDemo:
+    """Run the EKF or UKF on a simulated log and test its NIS, for one redraw of the demo.
+
+    Parameters
+    ----------
+    log : CoopLog with its truth (``simulate().log()``); y (K, 5), truth (K, 6)
+    filter : "ekf" or "ukf"
+    q_scale : the filter's Q = q_scale * Qtrue, > 0 (default: the tuned ``TUNED_Q_SCALE[filter]``)
+    measurements : rows of y to use, distinct integers in 0..4 (0 bearing UGV->UAV, 1 range,
+        2 bearing UAV->UGV, 3 UAV GPS east, 4 UAV GPS north); default all five
+    alpha : significance level of the NIS bounds, in (0, 1)
+
+    Returns
+    -------
+    CoopDemo
+    """
+    require_instance("log", log, CoopLog)
+    if log.truth is None:
+        raise ValueError("log must carry its truth (a simulated log, simulate().log()) to draw the errors")
+    filter = require_choice("filter", filter, COOP_DEMO_FILTERS)
+    q_scale = TUNED_Q_SCALE[filter] if q_scale is None else require_positive("q_scale", q_scale)
+    alpha = require_probability("alpha", alpha)
+    idx = measurement_subset(measurements)
+    idx = tuple(range(N_MEAS)) if idx is None else idx
+    p = log.params()
+    res = run_filter(filter, log.y, p, Q=q_scale * p.Qtrue, truth=log.truth, measurements=idx)
+    has = np.isfinite(res.nis)
+    n_nis = int(has.sum())
+    if n_nis == 0:
+        raise ValueError("log must hold at least one measurement row")
+    bounds = chi2_bounds(len(idx), n_nis, alpha)
+    return CoopDemo(filter, float(q_scale), idx, res.t, res.errors(log.truth), res.sigma2, res.P, res.nis,
+                    float(np.mean(res.nis[has])), n_nis, bounds, float(np.mean(res.nees)), float(alpha))
+
+
+class CoopDemoFigure:
+    """The cooperative-localization demo's figure, built once; :meth:`update` puts a new
+    :class:`CoopDemo` into the same lines.  Six panels (UGV in the top row, UAV in the bottom
+    row): the estimation error and the filter's +-2 sigma bounds.  ``figure``: a matplotlib
+    Figure to draw into (e.g. ``Figure(figsize=LIVE_FIGSIZE)`` for the live view), else a new
+    pyplot figure."""
+
+    def __init__(self, figure=None):
+        self.fig = new_figure(figure, (11.0, 5.4))
+        self.axes = self.fig.subplots(2, 3, sharex=True)
+        self.lines = []
+        for i, ax in enumerate(self.axes.flat):
+            err, = ax.plot([], [], color="C3", lw=0.7, label="error")
+            up, = ax.plot([], [], color="k", lw=0.8, label=r"$\pm 2\sigma$")
+            down, = ax.plot([], [], color="k", lw=0.8)
+            self.lines.append((err, up, down))
+            ax.set_ylabel(f"error {STATE_LABELS[i]}")
+        for ax in self.axes[-1]:
+            ax.set_xlabel("time $t$ [s]")
+        self.axes[0, 0].legend(loc="upper right", fontsize=8)
+        self.fig.subplots_adjust(left=0.08, right=0.975, bottom=0.1, top=0.86, wspace=0.4, hspace=0.12)
+
+    def update(self, demo: CoopDemo):
+        """Draw ``demo`` into the figure; returns the Figure."""
+        require_instance("demo", demo, CoopDemo)
+        skip = min(10, demo.t.size - 1)  # the y scale ignores the first second (prior sigma)
+        for i, (ax, (err, up, down)) in enumerate(zip(self.axes.flat, self.lines)):
+            err.set_data(demo.t, demo.errors[:, i])
+            up.set_data(demo.t, demo.sigma2[:, i])
+            down.set_data(demo.t, -demo.sigma2[:, i])
+            top = max(demo.sigma2[skip:, i].max(), np.abs(demo.errors[skip:, i]).max())
+            ax.set_ylim(-1.15 * top, 1.15 * top)
+        self.axes[0, 0].set_xlim(demo.t[0], demo.t[-1])
+        lo, hi = demo.nis_bounds
+        names = ", ".join(MEASUREMENT_NAMES[i] for i in demo.measurements)
+        self.fig.suptitle(f"{demo.filter.upper()}, Q = {demo.q_scale:.3g} Qtrue, measurements: {names}\n"
+                          f"errors with ±2σ; time-averaged NIS {demo.nis_mean:.2f}, bounds [{lo:.2f}, {hi:.2f}] "
+                          f"({demo.nis_dim} dof)", fontsize=10)
+        return self.fig
+
+
+def draw_coop_demo(demo: CoopDemo):
+    """A new figure of ``demo`` (see :class:`CoopDemoFigure`); returns the Figure."""
+    return CoopDemoFigure().update(demo)
+
+
+def coop_controls() -> dict:
+    """The cooperative-localization demo's controls (ipywidgets), by name: ``filter``
+    (EKF/UKF toggle), ``q_scale`` (Q = q_scale Qtrue, log scale, default the EKF's truth-model-tuned scale)
+    and one checkbox per measurement, ``m0`` .. ``m4`` (all ticked).  They update on release
+    (a UKF run takes a few tenths of a second)."""
+    import ipywidgets as w
+
+    style = {"description_width": "120px"}
+    controls = {
+        "filter": w.ToggleButtons(options=[("EKF", "ekf"), ("UKF", "ukf")], value="ekf", description="filter",
+                                  style={**style, "button_width": "80px"}),
+        "q_scale": w.FloatLogSlider(value=TUNED_Q_SCALE["ekf"], base=10, min=-2, max=2, step=0.1,
+                                    readout_format=".3g", continuous_update=False, description="Q / Qtrue",
+                                    style=style, layout=w.Layout(width="340px")),
+    }
+    for i, name in enumerate(MEASUREMENT_NAMES):
+        controls[f"m{i}"] = w.Checkbox(value=True, description=name, indent=False, layout=w.Layout(width="300px"))
+    return controls
