@@ -146,7 +146,7 @@ def test_checks_do_not_depend_on_between_fixes_in_a_long_scenario():
 
 
 def test_between_fixes_catches_a_filter_that_holds_P():
-    from kfcal_helpers.mistakes import mistaken_model
+    from kfcal_helpers.calibration.mistakes import mistaken_model
 
     p = CalibrationParams()
     mc = run_monte_carlo(p, n_runs=300, seed=4, between_fixes=True, model=mistaken_model(p, "no_propagation"))

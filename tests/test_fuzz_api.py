@@ -11,7 +11,8 @@ from kfcal_helpers.calibration import (CalibrationParams, covariance_sequence, o
                                        run_monte_carlo, simulate)
 from kfcal_helpers.calibration.error_model import phi_power
 from kfcal_helpers.consistency import chi2_bounds, inside_fraction, nees, nis
-from kfcal_helpers.coop import CoopParams, generate_log, load_log, write_log_csv, write_log_mat
+from kfcal_helpers.coop import CoopParams, MeasurementModel, load_log, truth_model_test, write_log_csv, write_log_mat
+from kfcal_helpers.coop import simulate as coop_simulate
 from kfcal_helpers.coop.model import dynamics, jacobian_C, measure, step, wrap_state
 
 P = CalibrationParams()
@@ -27,11 +28,11 @@ def _missing(keep):
 
 @pytest.fixture(scope="module")
 def small_log():
-    return generate_log(CoopParams(duration=1.0), seed=1)
+    return coop_simulate(CoopParams(duration=1.0), seed=1).log()
 
 
 def _mat(tmp, **change):
-    lg = generate_log(CoopParams(duration=1.0), seed=1)
+    lg = coop_simulate(CoopParams(duration=1.0), seed=1).log()
     raw = {"ydata": lg.y.T, "tvec": lg.t[None, :], "Qtrue": lg.Qtrue, "Rtrue": lg.Rtrue}
     raw.update(change)
     savemat(tmp / "log.mat", raw)
@@ -40,7 +41,7 @@ def _mat(tmp, **change):
 
 def _folder(tmp, **files):
     folder = tmp / "log"
-    write_log_csv(generate_log(CoopParams(duration=1.0), seed=1), folder)
+    write_log_csv(coop_simulate(CoopParams(duration=1.0), seed=1).log(), folder)
     for name, text in files.items():
         (folder / f"{name}.csv").unlink()
         if text is None:
@@ -58,22 +59,22 @@ def _file(tmp):
 # (id, call(tmp_path, log) -> anything, regex the ValueError message must match)
 BAD = [
     # run_monte_carlo
-    ("mc seed str", lambda t, lg: run_monte_carlo(n_runs=2, seed="x"), r"seed must be None or an integer in \[0, 2\*\*63 - 1\]"),
-    ("mc seed huge", lambda t, lg: run_monte_carlo(n_runs=2, seed=2**70), r"seed must be"),
-    ("mc seed float", lambda t, lg: run_monte_carlo(n_runs=2, seed=1.5), r"seed must be"),
-    ("mc seed negative", lambda t, lg: run_monte_carlo(n_runs=2, seed=-1), r"seed must be"),
-    ("mc seed bool", lambda t, lg: run_monte_carlo(n_runs=2, seed=True), r"seed must be"),
-    ("mc runs 1e30", lambda t, lg: run_monte_carlo(n_runs=10**30), r"n_runs: .* about .* h, more than"),
-    ("mc runs 1e9", lambda t, lg: run_monte_carlo(n_runs=10**9), r"n_runs: 1000000000 realizations .* h"),
-    ("mc runs float", lambda t, lg: run_monte_carlo(n_runs=1e3), r"n_runs must be an integer"),
-    ("mc one fix left", lambda t, lg: run_monte_carlo(n_runs=3, missing_fixes=_missing([150])),
+    ("mc seed str", lambda t, lg: run_monte_carlo(P, n_runs=2, seed="x"), r"seed must be None or an integer in \[0, 2\*\*63 - 1\]"),
+    ("mc seed huge", lambda t, lg: run_monte_carlo(P, n_runs=2, seed=2**70), r"seed must be"),
+    ("mc seed float", lambda t, lg: run_monte_carlo(P, n_runs=2, seed=1.5), r"seed must be"),
+    ("mc seed negative", lambda t, lg: run_monte_carlo(P, n_runs=2, seed=-1), r"seed must be"),
+    ("mc seed bool", lambda t, lg: run_monte_carlo(P, n_runs=2, seed=True), r"seed must be"),
+    ("mc runs 1e30", lambda t, lg: run_monte_carlo(P, n_runs=10**30), r"n_runs: .* about .* h, more than"),
+    ("mc runs 1e9", lambda t, lg: run_monte_carlo(P, n_runs=10**9), r"n_runs: 1000000000 realizations .* h"),
+    ("mc runs float", lambda t, lg: run_monte_carlo(P, n_runs=1e3), r"n_runs must be an integer"),
+    ("mc one fix left", lambda t, lg: run_monte_carlo(P, n_runs=3, missing_fixes=_missing([150])),
      r"missing_fixes must leave at least 2 of the 151 GPS fixes, got 1"),
-    ("mc no fix left", lambda t, lg: run_monte_carlo(n_runs=3, missing_fixes=np.ones(151, bool)),
+    ("mc no fix left", lambda t, lg: run_monte_carlo(P, n_runs=3, missing_fixes=np.ones(151, bool)),
      r"missing_fixes must leave at least 2"),
-    ("mc float mask", lambda t, lg: run_monte_carlo(n_runs=3, missing_fixes=np.zeros(151)), r"missing_fixes"),
+    ("mc float mask", lambda t, lg: run_monte_carlo(P, n_runs=3, missing_fixes=np.zeros(151)), r"missing_fixes"),
     ("mc too big", lambda t, lg: run_monte_carlo(P.replace(gps_rate=200.0), n_runs=2), r"params: .* MB, more than"),
     ("mc huge samples", lambda t, lg: run_monte_carlo(P.replace(imu_rate=1e7), n_runs=2), r"params: .* MB"),
-    ("mc params", lambda t, lg: run_monte_carlo("default"), r"params must be a CalibrationParams"),
+    ("mc params", lambda t, lg: run_monte_carlo("default", 2), r"params must be a CalibrationParams"),
     # CalibrationParams
     ("params replace bogus", lambda t, lg: P.replace(bogus=1), r"changes must name fields of CalibrationParams"),
     ("params omega huge", lambda t, lg: CalibrationParams(omega=1e308), r"omega must be at most pi \* imu_rate"),
@@ -90,10 +91,10 @@ BAD = [
     ("phi_power bool", lambda t, lg: phi_power(P, True), r"k must be an integer"),
     ("phi_power params", lambda t, lg: phi_power(None, 1), r"params must be a CalibrationParams"),
     ("covariance_sequence float mask", lambda t, lg: covariance_sequence(P, np.zeros(151)),
-     r"missing_fixes must be a bool array of shape \(151,\)"),
+     r"missing_fixes must be None or a bool array of shape \(151,\)"),
     ("covariance_sequence int mask", lambda t, lg: covariance_sequence(P, np.ones(151, int)), r"missing_fixes"),
     ("simulate 0 runs", lambda t, lg: simulate(P, 0, np.random.default_rng(0)), r"n_runs must be an integer >= 1"),
-    ("simulate rng", lambda t, lg: simulate(P, 2, 0), r"rng must be a numpy.random.Generator"),
+    ("simulate seed", lambda t, lg: simulate(P, 2, "0"), r"seed must be an integer in \[0, 2\*\*63 - 1\] or a numpy.random.Generator"),
     ("outage_mask pair", lambda t, lg: outage_mask(P, [(1, 2, 3)]), r"windows: each window must be a \(start, end\)"),
     ("outage_mask text", lambda t, lg: outage_mask(P, [("a", "b")]), r"windows: window bounds must be numbers"),
     ("outage_mask outside", lambda t, lg: outage_mask(P, [(-5, 3)]), r"windows: window -5:3 s is outside"),
@@ -118,9 +119,12 @@ BAD = [
     ("jacobian_C nan", lambda t, lg: jacobian_C(np.full(6, np.nan)), r"x must hold only finite"),
     ("jacobian_C shape", lambda t, lg: jacobian_C(np.zeros(4)), r"x must have shape"),
     ("jacobian_C range 0", lambda t, lg: jacobian_C(np.zeros(6)), r"range 0"),
-    ("step dT", lambda t, lg: step(X0, U0, dT=-1), r"dT must be > 0"),
+    ("step dt", lambda t, lg: step(X0, U0, dt=-1), r"dt must be > 0"),
     ("measure range 0", lambda t, lg: measure(np.zeros(6)), r"range 0"),
-    ("coop params bogus", lambda t, lg: CoopParams().replace(bogus=1), r"changes must name fields"),
+    ("coop params dt", lambda t, lg: CoopParams(dt=-1), r"dt must be > 0"),
+    ("coop subset rows", lambda t, lg: MeasurementModel(np.eye(5)).subset((0, 5)), r"idx must be a non-empty sequence"),
+    ("coop simulate seed", lambda t, lg: coop_simulate(seed=-1), r"seed must be an integer"),
+    ("coop mc alpha", lambda t, lg: truth_model_test(CoopParams(duration=1.0), 2, alpha=1.0), r"alpha must be a number in"),
     # coop logs
     ("load_log None", lambda t, lg: load_log(None), r"path must be a folder of CSVs or a \.mat file path, got None"),
     ("load_log number", lambda t, lg: load_log(3.5), r"path must be a folder"),
@@ -180,9 +184,9 @@ def test_valid_edges_still_accepted(tmp_path, small_log):
     assert float(nees(np.ones(3), np.eye(3))) == pytest.approx(3.0)
     assert CalibrationParams(omega=np.pi * 200.0).omega == pytest.approx(628.3185307)
     assert P.replace(omega=0.5).omega == 0.5
-    mc = run_monte_carlo(n_runs=3, seed=np.int64(2), missing_fixes=_missing([149, 150]))  # 2 fixes, 3 runs
+    mc = run_monte_carlo(P, n_runs=3, seed=np.int64(2), missing_fixes=_missing([149, 150]))  # 2 fixes, 3 runs
     assert np.all(np.isfinite(mc.nees)) and mc.checks()["residual_independence"].statistic.size == 4
-    assert run_monte_carlo(n_runs=2, seed=None).n_runs == 2
+    assert run_monte_carlo(P, n_runs=2, seed=None).n_runs == 2
     f = write_log_mat(small_log, tmp_path / "ok.mat")
     assert np.array_equal(load_log(f).y, small_log.y, equal_nan=True)
     assert write_log_csv(small_log, tmp_path / "new" / "deeper") == tmp_path / "new" / "deeper"

@@ -25,7 +25,7 @@ from kfcal_helpers import problems
 from kfcal_helpers.calibration import cli as calibration_cli
 from kfcal_helpers.calibration.params import CalibrationParams
 from kfcal_helpers.cli import main
-from kfcal_helpers.coop import CoopParams, generate_log, write_log_csv
+from kfcal_helpers.coop import CoopParams, simulate, write_log_csv
 
 PROG = "python -m kfcal_helpers"
 MEMORY_LIMIT = 500e6  #: bytes, the issue's bound on the peak memory of any accepted run
@@ -34,7 +34,7 @@ MEMORY_LIMIT = 500e6  #: bytes, the issue's bound on the peak memory of any acce
 def _log_folder(root: Path, **change) -> Path:
     """A small course-format CSV log folder; ``change`` replaces a file's text (or makes it a directory: None)."""
     folder = root / "log"
-    write_log_csv(generate_log(CoopParams(duration=2.0), seed=1), folder)
+    write_log_csv(simulate(CoopParams(duration=2.0), seed=1).log(), folder)
     for name, text in change.items():
         f = folder / f"{name}.csv"
         f.unlink()
@@ -46,7 +46,7 @@ def _log_folder(root: Path, **change) -> Path:
 
 
 def _mat(root: Path, **change) -> Path:
-    lg = generate_log(CoopParams(duration=1.0), seed=1)
+    lg = simulate(CoopParams(duration=1.0), seed=1).log()
     raw = {"ydata": lg.y.T, "tvec": lg.t[None, :], "Qtrue": lg.Qtrue, "Rtrue": lg.Rtrue}
     raw.update(change)
     savemat(root / "log.mat", raw)
@@ -58,7 +58,7 @@ def _ydata_text(values) -> str:
 
 
 def _huge(root):
-    y = generate_log(CoopParams(duration=2.0), seed=1).y.T.copy()
+    y = simulate(CoopParams(duration=2.0), seed=1).log().y.T.copy()
     y[1, 5] = 1e300
     return _log_folder(root, ydata=_ydata_text(y))
 
@@ -182,7 +182,7 @@ def _placeholders(tmp: Path) -> dict:
         "log_huge": _huge,
         "mat_string": lambda d: _mat(d, ydata="hello"),
         "mat_struct": lambda d: _mat(d, ydata={"a": np.ones(3), "b": "x"}),
-        "mat_complex": lambda d: _mat(d, ydata=generate_log(CoopParams(duration=1.0), seed=1).y.T * (1 + 1j)),
+        "mat_complex": lambda d: _mat(d, ydata=simulate(CoopParams(duration=1.0), seed=1).log().y.T * (1 + 1j)),
     }
     return {"tmp": str(tmp), "file": str(tmp / "file.png"), "mat_garbage": str(tmp / "garbage.mat"), **lazy}
 
