@@ -437,7 +437,7 @@ def estimate_run(params: CalibrationParams, n_runs: int, filter: str = "batch",
         raise ValueError(
             f"{params_name}: one realization of {params.n_imu} IMU samples and {params.n_gps} GPS fixes needs about "
             f"{peak / 1e6:.0f} MB, more than the {MEMORY_LIMIT / 1e6:.0f} MB allowed; use a shorter duration "
-            f"or lower rates (at most about 1000 GPS fixes and 2 million IMU samples)")
+            f"or lower rates (at most about 1000 GPS fixes and 3 million IMU samples)")
     seconds = (_SECONDS_PER_SAMPLE[filter] * params.n_imu * float(n_runs)
                + _SECONDS_PER_FIX2 * params.n_gps**2)
     if seconds > MAX_SECONDS:
