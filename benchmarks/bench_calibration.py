@@ -28,6 +28,18 @@ from kfcal_helpers.calibration.montecarlo import default_workers
 TARGET_SECONDS_10K, TARGET_SPEEDUP, TARGET_MB = 1.0, 250.0, 500.0
 
 
+def _cpu() -> str:
+    """The processor's model name (Linux), or the platform's description."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=10_000, help="batch realizations (default 10000)")
@@ -48,7 +60,7 @@ def main(argv=None) -> int:
     seconds_10k = batch.seconds * 10_000 / batch.n_runs
     out = {
         "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "machine": f"{_cpu()}, {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
         "load_average_1min": f"{load_before:.2f} before, {load_after:.2f} after",
         "workers": default_workers(),
         "batch_runs": batch.n_runs,
