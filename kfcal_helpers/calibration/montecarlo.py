@@ -416,7 +416,8 @@ def chunks_in_flight(params: CalibrationParams, n_runs: int, workers: int | None
     workers = default_workers() if workers is None else workers
     room = MEMORY_LIMIT - _fixed_bytes(params) - _sums_bytes(params, between_fixes)
     fit = int(room // _chunk_bytes(params, n_runs, between_fixes))
-    return max(1, min(workers, len(chunk_sizes(params, n_runs)), fit))
+    n_chunks = -(-n_runs // chunk_size(params))  # without listing them: n_runs may be far too large to run
+    return max(1, min(workers, n_chunks, fit))
 
 
 def estimate_run(params: CalibrationParams, n_runs: int, filter: str = "batch",
