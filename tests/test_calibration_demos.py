@@ -1,18 +1,17 @@
 """The calibration lecture demo (notebook 17): the compute function against the filters by other
-routes, the figure and the controls, the live demo over a grid of controls, and the exercise checks."""
+routes, the figure and the controls, the live demo over a grid of controls, and the exercise checks.
+(The engine functions the demo calls, the error recursion and the draws at the fixes, are tested in
+tests/test_calibration_engine.py.)"""
 
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
 from scipy import stats
 
-from kfcal_helpers.calibration import (CalibrationParams, batch_filter, covariance_sequence, error_state_model,
-                                       outage_mask, run_filterpy, simulate)
+from kfcal_helpers.calibration import (CalibrationParams, covariance_sequence, outage_mask, run_filterpy, simulate)
 from kfcal_helpers.calibration.demos import (LIVE_FIGSIZE, CalibrationDemo, CalibrationDemoFigure,
                                              calibration_controls, compute_calibration_demo, draw_calibration_demo,
                                              valid_gps_rates)
-from kfcal_helpers.calibration.engine import (estimate_between_fixes, filter_errors_at_fixes, noise_of_simulation,
-                                              sample_noise_at_fixes)
 from kfcal_helpers.calibration.exercises import EXERCISES, check_demo_first_fix_sigma, check_demo_ratio_band
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
 
@@ -43,53 +42,6 @@ def test_demo_sigma_is_the_filters_and_its_realization_is_filterpys():
     sim = simulate(p, 1, rng, missing_fixes=missing)
     fp = run_filterpy(p, sim.dz[0])
     assert np.allclose(demo.error, sim.dx[0] - fp.x, rtol=0, atol=1e-8)
-
-
-def test_estimate_between_fixes_is_batch_full_rate():
-    sim = simulate(P, 4, np.random.default_rng(0))
-    full = batch_filter(P, sim.dz, full_rate=True)
-    assert np.allclose(estimate_between_fixes(P, full.x_post), full.x, rtol=0, atol=1e-9)
-    assert np.allclose(estimate_between_fixes(P, full.x_post[2]), full.x[2], rtol=0, atol=1e-9)
-    with pytest.raises(ValueError, match="x_post"):
-        estimate_between_fixes(P, np.zeros((10, 3)))
-
-
-def test_error_recursion_is_batch_filter_on_the_same_draws():
-    p = P.replace(gps_rate=4.0)
-    missing = outage_mask(p, [(5.0, 9.0)])
-    sim = simulate(p, 6, np.random.default_rng(1), missing_fixes=missing)
-    cov = covariance_sequence(p, missing)
-    fr = batch_filter(p, sim.dz, full_rate=False, covariances=cov)
-    e_prior, e_post = filter_errors_at_fixes(p, cov, *noise_of_simulation(sim))
-    assert np.allclose(e_prior, sim.dx_at_fixes - fr.x_prior, rtol=0, atol=1e-9)
-    assert np.allclose(e_post, sim.dx_at_fixes - fr.x_post, rtol=0, atol=1e-9)
-    e0, w, eta = noise_of_simulation(sim)
-    with pytest.raises(ValueError, match="eta"):
-        filter_errors_at_fixes(p, cov, e0, w, eta[:, :-1])
-    with pytest.raises(ValueError, match="sim"):
-        noise_of_simulation(sim.dz)
-
-
-def test_noise_at_fixes_follows_the_error_model():
-    p = P.replace(gps_rate=2.0, W=4e-3)
-    n = 3000
-    e0, w, eta = sample_noise_at_fixes(p, n, np.random.default_rng(5))
-    assert e0.shape == (n, 3) and w.shape == (n, p.n_gps - 1, 3) and eta.shape == (n, p.n_gps, 2)
-    m = error_state_model(p)
-    # Q_r by r predict steps from zero: the covariance of the IMU noise summed between fixes
-    Q_r = np.zeros((3, 3))
-    for _ in range(p.steps_per_fix):
-        Q_r = m.Phi @ Q_r @ m.Phi.T + m.Q
-    assert np.all(w[..., 2] == 0.0)  # the bias has no process noise
-    w2 = w[..., :2].reshape(-1, 2)
-    assert np.allclose(w2.T @ w2 / len(w2), Q_r[:2, :2], rtol=0.02, atol=0)
-    lo, hi = stats.chi2.ppf([1e-4, 1 - 1e-4], n - 1) / (n - 1)
-    for got, want in ((e0.var(axis=0, ddof=1), np.diag(m.M0)), (eta[:, 7].var(axis=0, ddof=1), np.diag(m.V))):
-        assert np.all((got / want > lo) & (got / want < hi))
-    # the same draws read off a (shorter) 200 Hz simulation have the same covariance
-    sim = simulate(p.replace(duration=10.0), 2000, np.random.default_rng(6))
-    ws = noise_of_simulation(sim)[1][..., :2].reshape(-1, 2)
-    assert np.allclose(ws.T @ ws / len(ws), Q_r[:2, :2], rtol=0.03, atol=0)
 
 
 @pytest.mark.parametrize("ensemble", ["fixes", "simulate"])
