@@ -39,8 +39,9 @@ from matplotlib.figure import Figure  # noqa: E402
 from kfcal_helpers.coop import TUNED_Q_SCALE, simulate  # noqa: E402
 from kfcal_helpers.coop.demos import LIVE_FIGSIZE as COOP_FIGSIZE  # noqa: E402
 from kfcal_helpers.coop.demos import CoopDemoFigure, compute_coop_demo  # noqa: E402
-from kfcal_helpers.demos import (LIVE_FIGSIZE, CalibrationDemoFigure,  # noqa: E402
-                                 compute_calibration_demo, figure_png)
+from kfcal_helpers.calibration.demos import LIVE_FIGSIZE as CALIBRATION_FIGSIZE  # noqa: E402
+from kfcal_helpers.calibration.demos import CalibrationDemoFigure, compute_calibration_demo  # noqa: E402
+from kfcal_helpers.demos import figure_png  # noqa: E402
 from kfcal_helpers.style import use_style  # noqa: E402
 
 TARGET_MS = 100.0
@@ -98,7 +99,7 @@ def main(argv=None) -> int:
 
     print(f"\nCalibration demo: one 200 Hz realization + {args.runs}-realization ensemble")
     print(HEADER)
-    view = CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE["calibration"]))  # the live view's size
+    view = CalibrationDemoFigure(Figure(figsize=CALIBRATION_FIGSIZE))  # the live view's size
     compute_calibration_demo(n_runs=args.runs)  # warm-up: imports, caches
     worst = 0.0
     for name, kw in CALIBRATION_SETTINGS:

@@ -15,7 +15,7 @@ import matplotlib as mpl
 
 from .validation import require_choice
 
-__all__ = ["STYLES", "SLIDE_SIZE", "SLIDE_DPI", "INLINE_BACKEND", "style_params", "use_style"]
+__all__ = ["STYLES", "SLIDE_SIZE", "SLIDE_DPI", "INLINE_BACKEND", "style_params", "use_style", "line_width", "marker_size"]
 
 #: width, height in inches of a slide figure; at SLIDE_DPI this is 1280 x 720 px (16:9)
 SLIDE_SIZE = (12.8, 7.2)
@@ -77,3 +77,13 @@ def use_style(target: str = "notebook") -> None:
     if shell is not None and mpl.get_backend(auto_select=False) not in (INLINE_BACKEND, "inline"):
         shell.run_line_magic("matplotlib", INLINE_BACKEND)  # the name ipykernel gives it
     mpl.rcParams.update(params)
+
+
+def line_width(scale: float = 1.0) -> float:
+    """A line width relative to the current ``rcParams['lines.linewidth']`` (thin lines for dense data)."""
+    return scale * mpl.rcParams["lines.linewidth"]
+
+
+def marker_size(scale: float = 1.0) -> float:
+    """A marker size relative to the current ``rcParams['lines.markersize']``."""
+    return scale * mpl.rcParams["lines.markersize"]

@@ -106,9 +106,9 @@ def test_cli_json(tmp_path):
     r = run_cli("--runs", "50", "--seed", "3", "--json", "--figures", str(tmp_path))
     assert r.returncode == 0, r.stderr
     d = json.loads(r.stdout)
-    for key in ("runs", "filter", "seconds", "sigma_final", "ensemble_sigma_final", "checks"):
+    for key in ("n_runs", "filter", "seconds", "sigma_final", "ensemble_sigma_final", "checks"):
         assert key in d
-    assert d["runs"] == 50 and d["filter"] == "batch" and len(d["sigma_final"]) == 3
+    assert d["n_runs"] == 50 and d["filter"] == "batch" and len(d["sigma_final"]) == 3
     for name in ("mean_error", "covariance", "orthogonality", "residual_independence", "nees", "nis"):
         assert 0.0 <= d["checks"][name]["inside_fraction"] <= 1.0
     assert len(d["checks"]["nees"]["bounds"]) == 2 and len(d["checks"]["nis"]["bounds"]) == 2

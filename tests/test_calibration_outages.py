@@ -55,7 +55,7 @@ def test_cli_outage_runs(capsys):
     import json
 
     d = json.loads(capsys.readouterr().out)
-    assert d["runs"] == 20
+    assert d["n_runs"] == 20
     # the final sigma with outages is larger than without (fewer fixes)
     assert d["sigma_final"][2] > run_monte_carlo(PARAMS, 2, seed=0).sigma_final[2]
 

@@ -72,7 +72,7 @@ def result_to_dict(mc, outages=()) -> dict:
     """
     checks = mc.checks()
     out = {
-        "runs": mc.n_runs,
+        "n_runs": mc.n_runs,
         "filter": mc.filter,
         "truth": mc.truth,
         "seconds": mc.seconds,

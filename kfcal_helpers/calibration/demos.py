@@ -19,12 +19,10 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import ClassVar
 
-import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from ..consistency import chi2_bounds
+from ..demos import new_figure
 from ..validation import (require_choice, require_finite, require_instance, require_int, require_positive,
                           require_probability)
 from .engine import (covariance_sequence, estimate_between_fixes, filter_errors_time_major, noise_of_simulation,
@@ -183,19 +181,6 @@ def compute_calibration_demo(gps_rate: float = 5.0, W: float = 0.0004, gps_pos_v
 _CAL_LABELS = (r"position error [m]", r"velocity error [m/s]", r"bias error [m/s$^2$]")
 
 
-def _new_figure(figure, figsize):
-    """``figure`` if given (a matplotlib Figure; given an Agg canvas if it has none that can
-    render), else a new pyplot figure of ``figsize`` inches."""
-    if figure is None:
-        return plt.figure(figsize=figsize)
-    if not isinstance(figure, Figure):
-        raise ValueError(f"figure must be a matplotlib Figure or None, got {type(figure).__name__}")
-    if not isinstance(figure.canvas, FigureCanvasAgg):
-        FigureCanvasAgg(figure)
-    figure.clear()
-    return figure
-
-
 class CalibrationDemoFigure:
     """The calibration demo's figure, built once; :meth:`update` puts a new
     :class:`CalibrationDemo` into the same lines (a redraw then only re-renders).
@@ -213,7 +198,7 @@ class CalibrationDemoFigure:
             raise ValueError(f"t_zoom must be a time >= 0 s (the y axes are scaled to the curves after it), "
                              f"got {t_zoom!r}")
         self.t_zoom = t_zoom
-        self.fig = _new_figure(figure, (9.0, 7.2))
+        self.fig = new_figure(figure, (9.0, 7.2))
         self.axes = self.fig.subplots(3, 1, sharex=True)
         self.lines = []
         for k, ax in enumerate(self.axes):

@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy import stats
 
+from ..style import line_width, marker_size
 from .filters import FilterResult
 from .montecarlo import MonteCarloResult
 from .params import CalibrationParams
@@ -31,14 +32,6 @@ CHECK_PANELS = ("mean_error", "covariance", "orthogonality", "residual_independe
                 "nis")
 
 
-def _lw(scale: float = 1.0) -> float:
-    """A line width relative to rcParams['lines.linewidth'] (thin lines for dense data)."""
-    return scale * mpl.rcParams["lines.linewidth"]
-
-
-def _ms(scale: float = 1.0) -> float:
-    """A marker size relative to rcParams['lines.markersize']."""
-    return scale * mpl.rcParams["lines.markersize"]
 
 
 def outage_spans(params: CalibrationParams, missing) -> list[tuple[float, float]]:
@@ -89,7 +82,7 @@ def plot_estimate_errors(params: CalibrationParams, true_dx: np.ndarray, result:
     for k, ax in enumerate(axes):
         _ = ax.fill_between(t, -2 * sig[:, k], 2 * sig[:, k], color="C0", alpha=0.15, label="±2σ")
         _ = ax.fill_between(t, -sig[:, k], sig[:, k], color="C0", alpha=0.3, label="±1σ")
-        _ = ax.plot(t, err[:, k], color="C3", lw=_lw(0.6), label="error")
+        _ = ax.plot(t, err[:, k], color="C3", lw=line_width(0.6), label="error")
         ax.set_ylabel(STATE_LABELS[k])
         lim = max(5 * sig[late, k], 3 * sig[late:, k].max())
         ax.set_ylim(-lim, lim)
@@ -114,9 +107,9 @@ def plot_covariance_sawtooth(params: CalibrationParams, result: FilterResult, t_
     fig, axes = plt.subplots(1, 2, figsize=figsize or (10, 3.6))
     at_fix = params.t_gps <= t_max
     for ax, k, unit in ((axes[0], 0, "m"), (axes[1], 1, "m/s")):
-        _ = ax.plot(t[sel], sig[sel, k], lw=_lw(0.7))
+        _ = ax.plot(t[sel], sig[sel, k], lw=line_width(0.7))
         _ = ax.plot(params.t_gps[at_fix], sig[params.fix_indices][at_fix, k],
-                    "o", ms=_ms(0.5), label="a posteriori at fixes")
+                    "o", ms=marker_size(0.5), label="a posteriori at fixes")
         ax.set_yscale("log")
         ax.set_xlabel("time t [s]")
         ax.set_ylabel(f"σ [{unit}]")
@@ -135,7 +128,7 @@ def _bands_lines(ax, point, simul, lw=0.7, symmetric=True):
     or scalars); the simultaneous band is the one the verdict uses."""
     for level, style, label in ((point, "--", "pointwise 95 % band"), (simul, "-", "simultaneous band (verdict)")):
         for sign in ((1, -1) if symmetric else (1,)):
-            lines = ax.plot(*level(sign), color="k", ls=style, lw=_lw(lw))
+            lines = ax.plot(*level(sign), color="k", ls=style, lw=line_width(lw))
             if sign == 1:
                 lines[0].set_label(label)
 
@@ -150,7 +143,7 @@ def _legend_on_top(ax, ncol=2):
 def _normalized_band(ax, t, ratio, sim, title, ylabel, labels=None, lw=0.6):
     """Statistics divided by their pointwise band half-width, with the pointwise (±1) and the
     simultaneous (±sim) lines."""
-    lines = ax.plot(t, ratio, lw=_lw(lw))
+    lines = ax.plot(t, ratio, lw=line_width(lw))
     if labels:
         for line, name in zip(lines, labels):
             line.set_label(name)
@@ -176,7 +169,7 @@ def _panel_covariance(fig, ax, mc, checks):
     st, lo, hi, ex, slo, shi = (a.reshape(n, 6) for a in (c.statistic, c.lower, c.upper, c.expected,
                                                            c.sim_lower, c.sim_upper))
     for k, name in ((0, "p"), (3, "v"), (5, "b")):
-        _ = ax.plot(mc.t_gps, st[:, k] / ex[:, k], lw=_lw(0.6), label=f"var {name}")
+        _ = ax.plot(mc.t_gps, st[:, k] / ex[:, k], lw=line_width(0.6), label=f"var {name}")
     t = mc.t_gps
     _bands_lines(ax, lambda s: (t, (hi if s > 0 else lo)[:, 0] / ex[:, 0]),
                  lambda s: (t, (shi if s > 0 else slo)[:, 0] / ex[:, 0]))
@@ -198,9 +191,9 @@ def _panel_orthogonality(fig, ax, mc, checks):
     # at least 1 - alpha (Sidak, for jointly Gaussian entries)
     a9 = 1 - (1 - mc.alpha) ** (1 / 9)
     max9 = stats.norm.ppf(1 - a9 / 2) / stats.norm.ppf(1 - mc.alpha / 2)
-    _ = ax.plot(t, ratio.max(axis=1), lw=_lw(0.6), color="C0", label="largest of the 9 entries (k, m)")
-    _ = ax.plot(t, max9 * np.ones_like(t), color="k", ls="--", lw=_lw(0.7), label="95 % band of the largest of 9")
-    _ = ax.plot(t, sim * np.ones_like(t), color="k", ls="-", lw=_lw(0.7), label="simultaneous band (verdict)")
+    _ = ax.plot(t, ratio.max(axis=1), lw=line_width(0.6), color="C0", label="largest of the 9 entries (k, m)")
+    _ = ax.plot(t, max9 * np.ones_like(t), color="k", ls="--", lw=line_width(0.7), label="95 % band of the largest of 9")
+    _ = ax.plot(t, sim * np.ones_like(t), color="k", ls="-", lw=line_width(0.7), label="simultaneous band (verdict)")
     ax.set_ylim(bottom=0)
     ax.set_title("3. |(1/N) Σ (e_k − ē_k) x̂_m| / 1-entry half-width")
     ax.set_ylabel("normalized [-]")
@@ -236,7 +229,7 @@ def _panel_residual_variance(fig, ax, mc, checks):
     st, ex, lo, hi, slo, shi = (a.reshape(len(t), 2) for a in (c.statistic, c.expected, c.lower, c.upper,
                                                                c.sim_lower, c.sim_upper))
     for k, name in ((0, "p"), (1, "v")):
-        _ = ax.plot(t, st[:, k] / ex[:, k], lw=_lw(0.6), label=f"residual {name}")
+        _ = ax.plot(t, st[:, k] / ex[:, k], lw=line_width(0.6), label=f"residual {name}")
     _bands_lines(ax, lambda s: (t, (hi if s > 0 else lo)[:, 0] / ex[:, 0]),
                  lambda s: (t, (shi if s > 0 else slo)[:, 0] / ex[:, 0]))
     ax.set_title("4b. (1/N) Σ r² / S (residual variance)")
@@ -251,7 +244,7 @@ def _panel_chi2(ax, mc, checks, name):
     stat = np.full(len(mc.t_gps), np.nan)  # NIS: a gap (no line) at missing fixes
     stat[slice(None) if name == "nees" else ~mc.missing] = c.statistic
     t = mc.t_gps
-    _ = ax.plot(t, stat, lw=_lw(0.6), label=f"run-averaged {name.upper()}")
+    _ = ax.plot(t, stat, lw=line_width(0.6), label=f"run-averaged {name.upper()}")
     _bands_lines(ax, lambda s: (t, np.full_like(t, c.upper[0] if s > 0 else c.lower[0])),
                  lambda s: (t, np.full_like(t, c.sim_upper[0] if s > 0 else c.sim_lower[0])))
     ax.set_title(f"{'5. NEES' if name == 'nees' else '6. NIS'} (expected {dim})")
@@ -313,8 +306,8 @@ def plot_ensemble_sigma(mc: MonteCarloResult, figsize=None, title: str | None = 
     for k, (ax, (name, unit)) in enumerate(zip(axes, _STATES)):
         for P, ens, color, when in ((mc.P_prior, mc.e_prior_cov, "C0", "a priori"),
                                     (mc.P_post, mc.e_cov, "C3", "a posteriori")):
-            _ = ax.plot(mc.t_gps, np.sqrt(P[:, k, k]), color=color, lw=_lw(0.8), label=f"filter σ, {when}")
-            _ = ax.plot(mc.t_gps, np.sqrt(ens[:, k, k]), ".", color=color, ms=_ms(0.8),
+            _ = ax.plot(mc.t_gps, np.sqrt(P[:, k, k]), color=color, lw=line_width(0.8), label=f"filter σ, {when}")
+            _ = ax.plot(mc.t_gps, np.sqrt(ens[:, k, k]), ".", color=color, ms=marker_size(0.8),
                         label=f"ensemble std, {when}")
         ax.set_yscale("log")
         ax.set_xlabel("time t [s]")
@@ -390,8 +383,8 @@ def plot_gps_measurement(sim: Simulation, run: int = 0, figsize=None):
     dx = sim.dx[run]
     fig, axes = plt.subplots(2, 1, figsize=figsize or (9, 6), sharex=True)
     for k, (ax, (name, unit)) in enumerate(zip(axes, _STATES[:2])):
-        _ = ax.plot(params.t_gps, dz[:, k], ".", ms=_ms(0.7), color="C1", label=r"$\delta z$ = GPS − IMU")
-        _ = ax.plot(sim.t, dx[:, k], "k", lw=_lw(0.7), label=[r"$\delta p = p - p_c$", r"$\delta v = v - v_c$"][k])
+        _ = ax.plot(params.t_gps, dz[:, k], ".", ms=marker_size(0.7), color="C1", label=r"$\delta z$ = GPS − IMU")
+        _ = ax.plot(sim.t, dx[:, k], "k", lw=line_width(0.7), label=[r"$\delta p = p - p_c$", r"$\delta v = v - v_c$"][k])
         ax.set_ylabel(f"{name} [{unit}]")
         ax.legend(loc="lower left")
     axes[1].set_xlabel("time t [s]")

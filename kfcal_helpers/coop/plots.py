@@ -12,15 +12,12 @@ import matplotlib as mpl
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ..style import line_width
 from .model import MEAS_LABELS, N_MEAS, STATE_LABELS
 
 __all__ = ["plot_series", "plot_states", "plot_errors", "plot_measurements", "plot_consistency", "plot_paths",
            "plot_nis_comparison", "plot_runs_consistency", "legend_below"]
 
-
-def _lw(scale: float = 1.0) -> float:
-    """A line width relative to rcParams['lines.linewidth']."""
-    return scale * mpl.rcParams["lines.linewidth"]
 
 
 def _two_lines(label: str) -> str:
@@ -84,7 +81,7 @@ def plot_series(t, series: dict, labels, title: str, styles: dict | None = None,
         for name, arr in series.items():
             col = np.asarray(arr)[:, i]
             tt, yy = _break_at_wraps(t, col) if i in wrapped else (t, col)
-            ax.plot(tt, yy, label=name, **styles.get(name, {"lw": _lw(0.7)}))
+            ax.plot(tt, yy, label=name, **styles.get(name, {"lw": line_width(0.7)}))
         ax.set_ylabel(_two_lines(labels[i]))
         ax.grid(True, alpha=0.3)
     for c in range(ncols):
@@ -117,7 +114,7 @@ def plot_states(t, x, sigma2=None, truth=None, title: str = "States", figsize=No
     ``names`` are the legend names of ``x`` (solid) and ``truth`` (dashed)."""
     est, tru = names
     series = {est: x}
-    styles = {est: {"lw": _lw(0.7), "color": "C0"}, tru: {"lw": _lw(0.7), "color": "k", "ls": "--"}}
+    styles = {est: {"lw": line_width(0.7), "color": "C0"}, tru: {"lw": line_width(0.7), "color": "k", "ls": "--"}}
     if truth is not None:
         series[tru] = truth
     fig = plot_series(t, series, STATE_LABELS, title, styles, ncols=ncols, figsize=figsize)
@@ -132,9 +129,9 @@ def plot_states(t, x, sigma2=None, truth=None, title: str = "States", figsize=No
 def plot_errors(t, errors, sigma2, title: str = r"Estimation errors with $\pm 2\sigma$ bounds", figsize=None,
                 ncols: int = 2):
     """Errors (K, 6) (headings wrapped) against +-2 sigma (K, 6); ``ncols`` panels per row."""
-    bound = {"lw": _lw(0.7), "color": "k", "ls": "--"}
+    bound = {"lw": line_width(0.7), "color": "k", "ls": "--"}
     # one legend entry for both bound lines: a name starting with "_" is left out of the legend
-    styles = {"error": {"lw": _lw(0.7), "color": "C3"}, r"$\pm 2\sigma$": bound, "_-2sigma": bound}
+    styles = {"error": {"lw": line_width(0.7), "color": "C3"}, r"$\pm 2\sigma$": bound, "_-2sigma": bound}
     labels = [f"error {lab}" for lab in STATE_LABELS]
     return plot_series(t, {"error": errors, r"$\pm 2\sigma$": sigma2, "_-2sigma": -np.asarray(sigma2)},
                        labels, title, styles, ncols=ncols, figsize=figsize)
@@ -145,7 +142,7 @@ def plot_measurements(t, series: dict, title: str = "Measurements", figsize=None
     ``ncols`` panels per row.  The first series is drawn as dots, the others as lines that break
     where a wrapped bearing jumps by 2 pi (no vertical strokes)."""
     ms = 0.35 * mpl.rcParams["lines.markersize"]
-    styles = {name: ({"lw": 0, "marker": ".", "ms": ms} if i == 0 else {"lw": _lw(0.7)})
+    styles = {name: ({"lw": 0, "marker": ".", "ms": ms} if i == 0 else {"lw": line_width(0.7)})
               for i, name in enumerate(series)}
     return plot_series(t, series, MEAS_LABELS, title, styles, ncols=ncols, figsize=figsize, wrapped=(0, 2))
 
@@ -160,7 +157,7 @@ def plot_consistency(mc, title: str | None = None, figsize=None):
         ax.plot(mc.t[ok], mean[ok], ".", ms=0.35 * mpl.rcParams["lines.markersize"],
                 label=f"{name}, mean of {mc.n_runs} runs")
         for b, lab in zip(bounds, (f"χ² bounds, α = {mc.alpha:g}", None)):
-            ax.axhline(b, color="k", ls="--", lw=_lw(0.7), label=lab)
+            ax.axhline(b, color="k", ls="--", lw=line_width(0.7), label=lab)
         ax.set_xlabel("time $t$ [s]")
         ax.set_ylabel(f"mean {name} [-]")
         frac = mc.nees_inside_fraction if name == "NEES" else mc.nis_inside_fraction
@@ -210,7 +207,7 @@ def plot_nis_comparison(averages: dict, bounds, title: str = "Time-averaged NIS 
     lo, hi = bounds
     fig, ax = plt.subplots(figsize=figsize or (7, 4.5))
     ax.axhspan(lo, hi, color="C2", alpha=0.25, label=f"χ² bounds [{lo:.2f}, {hi:.2f}]")
-    _ = ax.axhline(expected, color="k", ls="--", lw=_lw(0.7), label=f"expected value {expected:g}")
+    _ = ax.axhline(expected, color="k", ls="--", lw=line_width(0.7), label=f"expected value {expected:g}")
     x = np.arange(len(names))
     for xi, v in zip(x, values):
         inside = lo <= v <= hi
@@ -242,9 +239,9 @@ def plot_runs_consistency(mc, title: str | None = None, figsize=None, ylim=None)
         tt = np.broadcast_to(mc.t, values.shape)[:, ok]
         _ = ax.plot(tt.ravel(), values[:, ok].ravel(), ".", ms=ms, color="0.6", alpha=0.3, rasterized=True,
                     label=f"each of the {mc.n_runs} runs")
-        _ = ax.plot(mc.t[ok], mean[ok], "-", color="C0", lw=_lw(0.8), label=f"average of {mc.n_runs} runs")
+        _ = ax.plot(mc.t[ok], mean[ok], "-", color="C0", lw=line_width(0.8), label=f"average of {mc.n_runs} runs")
         for b, lab in zip(bounds, (f"χ² bounds of the average, α = {mc.alpha:g}", None)):
-            _ = ax.axhline(b, color="k", ls="--", lw=_lw(0.8), label=lab)
+            _ = ax.axhline(b, color="k", ls="--", lw=line_width(0.8), label=lab)
         ax.set_yscale("log")
         if ylim is not None:
             ax.set_ylim(*ylim)
