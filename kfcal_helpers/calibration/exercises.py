@@ -26,7 +26,7 @@ import numpy as np
 from scipy import stats
 
 from ..consistency import chi2_bounds
-from ..exercises._core import (PLACEHOLDER, Exercise, Feedback, as_array, call_student, chi2_average_bounds,
+from ..exercises._core import (PLACEHOLDER, Exercise, Feedback, as_array, call_student, chi2_average_bounds, distinct_mistakes,
                                unanswered)
 from ..validation import (require_covariance, require_finite, require_instance, require_int, require_positive,
                           require_probability)
@@ -1139,17 +1139,6 @@ _RTOL_17_1 = 1e-4  # sigmas from two or three inverse variances: 4 significant d
 _RTOL_BAND = 5e-5  # s/σ band: the N vs N-1 and normal-approximation mistakes differ by 1e-4
 
 
-def _distinct(pairs, expected, rtol):
-    """``(value, key)`` pairs without the values equal to ``expected`` (a mistake that gives the
-    right answer for these settings is not a mistake)."""
-    out = []
-    for value, key in pairs:
-        value = np.asarray(value, dtype=float)
-        if value.shape == np.shape(expected) and np.allclose(value, expected, rtol=rtol, atol=0):
-            continue
-        out.append((value, key))
-    return out
-
 
 def first_fix_sigmas(gps_pos_sigma: float, params: CalibrationParams | None = None) -> np.ndarray:
     """[σ_p, σ_v, σ_b] (m, m/s, m/s²) a posteriori after the first fix at t = 0, with the GPS
@@ -1206,7 +1195,7 @@ def check_demo_first_fix_sigma(answer, *, gps_pos_sigma: float = 3.0) -> Feedbac
             and np.allclose(a.ravel()[:2], right[:2], rtol=_RTOL_17_1, atol=0)
             and not np.isclose(a.ravel()[2], right[2], rtol=_RTOL_17_1, atol=0)):
         return ex.mistake("bias")
-    return ex.judge(answer, right, _distinct(pairs, right, _RTOL_17_1), rtol=_RTOL_17_1, atol=0.0)
+    return ex.judge(answer, right, distinct_mistakes(pairs, right, _RTOL_17_1), rtol=_RTOL_17_1, atol=0.0)
 
 
 def ratio_band(n_runs: int, alpha: float = 0.05) -> np.ndarray:
@@ -1249,7 +1238,7 @@ def check_demo_ratio_band(answer, *, n_runs: int = 200, alpha: float = 0.05) -> 
         (1 + pm * z / np.sqrt(2 * (N - 1)), "normal"),
         (1 + pm * z / np.sqrt(N), "mean_band"),
     ]
-    return ex.judge(answer, right, _distinct(pairs, right, _RTOL_BAND), rtol=_RTOL_BAND, atol=0.0)
+    return ex.judge(answer, right, distinct_mistakes(pairs, right, _RTOL_BAND), rtol=_RTOL_BAND, atol=0.0)
 
 
 #: every exercise record of the calibration notebooks, by id

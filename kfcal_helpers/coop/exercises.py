@@ -61,7 +61,7 @@ from .model import (
     wrap_measurement,
     wrap_state,
 )
-from ..exercises._core import (GENERIC_HINT, Exercise, Feedback, as_array, call_student, chi2_average_bounds, matches,
+from ..exercises._core import (GENERIC_HINT, Exercise, Feedback, as_array, call_student, chi2_average_bounds, distinct_mistakes, matches,
                                unanswered)
 from ..validation import require_finite, require_instance, require_int, require_positive, require_probability, require_shape
 
@@ -850,16 +850,6 @@ def check_sparse_nis_bounds(answer, *, every: int = SPARSE_EVERY, n_samples: int
 _RTOL_NIS = 5e-6   # NIS bounds: K = 1000 vs 1001 differ by 3e-5 (compute them, do not type rounded numbers)
 
 
-def _distinct(pairs, expected, rtol):
-    """The ``(value, key)`` pairs whose value differs from ``expected``."""
-    out = []
-    for value, key in pairs:
-        value = np.asarray(value, dtype=float)
-        if value.shape == np.shape(expected) and np.allclose(value, expected, rtol=rtol, atol=0):
-            continue
-        out.append((value, key))
-    return out
-
 
 SUBSET_NIS_BOUNDS = Exercise(
     "18.1",
@@ -895,7 +885,7 @@ def check_subset_nis_bounds(answer, *, n_meas: int = 3, n_samples: int = 1001, a
         (m + np.array([-1.0, 1.0]) * z * np.sqrt(2 * m / K), "normal"),
     ]
     E = replace(SUBSET_NIS_BOUNDS, praise=SUBSET_NIS_BOUNDS.praise.format(m=m, K=K))
-    return E.judge(answer, right, _distinct(pairs, right, _RTOL_NIS), rtol=_RTOL_NIS, atol=0.0)
+    return E.judge(answer, right, distinct_mistakes(pairs, right, _RTOL_NIS), rtol=_RTOL_NIS, atol=0.0)
 
 
 #: the measurement subsets of exercise 18.2: no range, no GPS, no bearings
@@ -960,7 +950,7 @@ def check_lost_directions(answer, *, window: int = 10) -> Feedback:
     for lost in (1, 2, 3):
         pairs.append((right + np.array([lost, 0, 0]), "no_range_lost"))
         pairs.append((right + np.array([0, 0, lost]), "no_bearings_lost"))
-    return LOST_DIRECTIONS.judge(answer, right, _distinct(pairs, right, 0.0), rtol=0.0, atol=1e-9)
+    return LOST_DIRECTIONS.judge(answer, right, distinct_mistakes(pairs, right, 0.0), rtol=0.0, atol=1e-9)
 
 
 #: every exercise of this module by id

@@ -19,7 +19,7 @@ import numpy as np
 from scipy import stats
 
 __all__ = ["Feedback", "Exercise", "unanswered", "as_array", "matches", "judge", "call_student", "first_line",
-           "chi2_average_bounds", "GENERIC_HINT", "PLACEHOLDER", "PLACEHOLDER_FUNC"]
+           "chi2_average_bounds", "distinct_mistakes", "GENERIC_HINT", "PLACEHOLDER", "PLACEHOLDER_FUNC"]
 
 GENERIC_HINT = "compare your answer with the formula in the notebook, term by term"
 PLACEHOLDER = "replace ... with your answer"
@@ -126,6 +126,18 @@ def call_student(exercise: str, func, cases, what: str = "your function", conver
                                   answered=False)
         outs.append(out)
     return outs, None
+
+
+def distinct_mistakes(pairs, expected, rtol: float):
+    """The ``(value, key)`` pairs whose value differs from ``expected`` (within ``rtol``): a mistake
+    that gives the right answer for these settings is not a mistake."""
+    out = []
+    for value, key in pairs:
+        value = np.asarray(value, dtype=float)
+        if value.shape == np.shape(expected) and np.allclose(value, expected, rtol=rtol, atol=0):
+            continue
+        out.append((value, key))
+    return out
 
 
 def unanswered(answer) -> bool:
