@@ -81,7 +81,7 @@ BAD = [
     ("params omega 1e160", lambda t, lg: CalibrationParams(omega=1e160), r"omega must be at most"),
     ("params duration huge", lambda t, lg: CalibrationParams(duration=1e300), r"duration \* imu_rate must be at most"),
     ("params rates tiny", lambda t, lg: CalibrationParams(imu_rate=1e300, gps_rate=1e-300, omega=0.2),
-     r"at most 1e\+12"),
+     r"imu_rate / gps_rate must be at most 1e\+12 IMU samples per GPS period"),
     ("params omega str", lambda t, lg: CalibrationParams(omega="fast"), r"omega must be a finite real number"),
     # phi_power, covariance_sequence, simulate, outages
     ("phi_power 1.5", lambda t, lg: phi_power(P, 1.5), r"k must be an integer"),

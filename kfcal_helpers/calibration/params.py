@@ -48,9 +48,12 @@ class CalibrationParams:
         if self.omega > math.pi * self.imu_rate:
             raise ValueError(f"omega must be at most pi * imu_rate = {math.pi * self.imu_rate:g} rad/s (the IMU's "
                              f"Nyquist frequency: a faster acceleration is not sampled), got {self.omega:g} rad/s")
-        if self.imu_rate / self.gps_rate > MAX_SAMPLES or self.duration * self.imu_rate > MAX_SAMPLES:
+        if self.imu_rate / self.gps_rate > MAX_SAMPLES:
+            raise ValueError(f"imu_rate / gps_rate must be at most {MAX_SAMPLES:g} IMU samples per GPS period, got "
+                             f"imu_rate={self.imu_rate:g} Hz, gps_rate={self.gps_rate:g} Hz")
+        if self.duration * self.imu_rate > MAX_SAMPLES:
             raise ValueError(f"duration * imu_rate must be at most {MAX_SAMPLES:g} IMU samples, got "
-                             f"duration={self.duration:g} s, imu_rate={self.imu_rate:g} Hz, gps_rate={self.gps_rate:g} Hz")
+                             f"duration={self.duration:g} s, imu_rate={self.imu_rate:g} Hz")
         ratio = self.imu_rate / self.gps_rate
         if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
             raise ValueError(
