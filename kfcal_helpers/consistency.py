@@ -18,7 +18,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from scipy import stats
 
-from .validation import require_finite, require_int
+from .validation import require_int, require_probability
 
 __all__ = ["chi2_bounds", "normalized_squares", "nees", "nis", "inside_fraction", "Check", "MonteCarloSummary",
            "format_checks"]
@@ -42,9 +42,7 @@ def chi2_bounds(dim: int, n_samples: int, alpha: float = 0.05) -> tuple[float, f
     """
     dim = require_int("dim", dim, minimum=1)
     n_samples = require_int("n_samples", n_samples, minimum=1)
-    alpha = require_finite("alpha", alpha)
-    if not 0 < alpha < 1:
-        raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
+    alpha = require_probability("alpha", alpha)
     dof = dim * n_samples
     lower = stats.chi2.ppf(alpha / 2, dof) / n_samples
     upper = stats.chi2.ppf(1 - alpha / 2, dof) / n_samples
