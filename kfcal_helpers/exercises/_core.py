@@ -19,10 +19,16 @@ import numpy as np
 from scipy import stats
 
 __all__ = ["Feedback", "Exercise", "unanswered", "as_array", "matches", "judge", "call_student", "first_line",
-           "chi2_average_bounds", "distinct_mistakes", "GENERIC_HINT", "PLACEHOLDER", "PLACEHOLDER_FUNC"]
+           "chi2_average_bounds", "distinct_mistakes", "GENERIC_HINT", "PLACEHOLDER", "PLACEHOLDER_FUNC",
+           "ROUNDED_RTOL", "ROUNDED_HINT"]
 
 GENERIC_HINT = "compare your answer with the formula in the notebook, term by term"
 PLACEHOLDER = "replace ... with your answer"
+#: an answer this close (relative) to the expected value, but not within the check's own tolerance, is
+#: taken for the right value rounded (digits copied from a printout) and gets :data:`ROUNDED_HINT`
+ROUNDED_RTOL = 1e-3
+ROUNDED_HINT = ("close, but not exactly: pass the value you computed (a variable or an expression), "
+                "not digits copied from a printout")
 PLACEHOLDER_FUNC = "write the body of your function (replace ... with your code), then pass the function to the check"
 
 
@@ -171,7 +177,9 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
     wrong : sequence of ``(value, hint)`` pairs: the value a common mistake gives and the
         hint that points at that mistake (never the answer itself)
     hint : the hint when the answer is neither right nor a known mistake
-    A shape different from the expected one gets its own hint.
+    A shape different from the expected one gets its own hint.  An answer within
+    :data:`ROUNDED_RTOL` of the expected value (a rounded copy of a printout) is told so; one within
+    it of a known mistake's value gets that mistake's hint.
     """
     if unanswered(answer):
         return Feedback(exercise, False, placeholder, answered=False)
@@ -180,6 +188,12 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
     for value, why in wrong:
         if matches(answer, value, rtol, atol):
             return Feedback(exercise, False, why)
+    if rtol < ROUNDED_RTOL:
+        if matches(answer, expected, ROUNDED_RTOL, atol):
+            return Feedback(exercise, False, ROUNDED_HINT)
+        for value, why in wrong:
+            if matches(answer, value, ROUNDED_RTOL, atol):
+                return Feedback(exercise, False, why)
     a, e = as_array(answer), np.asarray(expected, dtype=float)
     if a is None:
         return Feedback(exercise, False, f"expected numbers (an array of shape {e.shape}), got {type(answer).__name__}")
