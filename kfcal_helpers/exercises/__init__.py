@@ -9,8 +9,10 @@ Each exercise's texts are one :class:`Exercise` record (id, praise, hint, the hi
 mistakes) next to its check.  Worked solutions are in ``notebooks/solutions/``.
 """
 
-from ._core import (GENERIC_HINT, PLACEHOLDER, PLACEHOLDER_FUNC, Exercise, Feedback, as_array, call_student,
-                    chi2_average_bounds, first_line, judge, matches, unanswered)
+from ._core import (GENERIC_HINT, PLACEHOLDER, PLACEHOLDER_FUNC, ROUNDED_HINT, ROUNDED_RTOL, Exercise, Feedback,
+                    as_array, call_student, chi2_average_bounds, distinct_mistakes, first_line, judge, matches,
+                    unanswered)
 
 __all__ = ["Feedback", "Exercise", "judge", "matches", "unanswered", "as_array", "call_student", "first_line",
-           "chi2_average_bounds", "GENERIC_HINT", "PLACEHOLDER", "PLACEHOLDER_FUNC"]
+           "chi2_average_bounds", "distinct_mistakes", "GENERIC_HINT", "PLACEHOLDER", "PLACEHOLDER_FUNC",
+           "ROUNDED_RTOL", "ROUNDED_HINT"]
