@@ -191,12 +191,12 @@ def measurement_free_diff(xk, j, e, p):
 
 def test_check_18_2_lost_directions():
     counts = []
-    for rows in ([0, 2, 3, 4], [0, 1, 2], [1, 3, 4]):
+    for rows in ([1, 3, 4], [0, 1, 2, 3], [0, 2]):  # no bearings, no GPS north, bearings only
         lost, null_residual = _lost_directions_independently(rows)
         counts.append(lost)
-        if 3 not in rows:  # no GPS: both common shifts and the rotation change no measurement
+        if rows == [0, 2]:  # bearings only: both common shifts and the rotation change no measurement
             assert null_residual < 1e-8
-    assert counts == [0, 3, 0]
+    assert counts == [0, 1, 3]
     # a common shift and a rotation of the whole scene change no relative measurement of the nonlinear model
     x = nominal_trajectory(CoopParams(), 5)
     assert np.allclose(measure(x + [3.0, -2.0, 0, 3.0, -2.0, 0])[:, :3], measure(x)[:, :3], atol=1e-12)
@@ -207,11 +207,11 @@ def test_check_18_2_lost_directions():
         rot[:, i + 2] = x[:, i + 2] + 0.3
     assert np.allclose(measurement_residual(measure(rot)[:, :3], measure(x)[:, :3]), 0, atol=1e-12)
     assert check_lost_directions(counts).correct and check_lost_directions(np.array(counts, float)).correct
-    wrong = {"ranks": [6, 3, 6], "euler": [0, 2, 0], "no_gps_observable": [0, 0, 0],
-             "no_range_lost": [1, 3, 0], "no_bearings_lost": [0, 3, 1]}
+    wrong = {"ranks": [6, 5, 3], "euler": [0, 1, 2], "north_observable": [0, 0, 3], "north_both_lost": [0, 2, 3],
+             "bearings_observable": [0, 1, 0], "bearings_scale_lost": [0, 1, 4], "no_bearings_lost": [1, 1, 3]}
     for key, value in wrong.items():
         assert _rejected(check_lost_directions(value), "18.2", key), key
-    assert "whole number" in check_lost_directions([0, 2.5, 0]).message
+    assert "whole number" in check_lost_directions([0, 1.5, 3]).message
     assert not check_lost_directions(...).answered and not check_lost_directions([0, 2]).correct
     with pytest.raises(ValueError, match="window"):
         check_lost_directions(counts, window=1)

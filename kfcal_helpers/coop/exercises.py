@@ -888,8 +888,9 @@ def check_subset_nis_bounds(answer, *, n_meas: int = 3, n_samples: int = 1001, a
     return E.judge(answer, right, distinct_mistakes(pairs, right, _RTOL_NIS), rtol=_RTOL_NIS, atol=0.0)
 
 
-#: the measurement subsets of exercise 18.2: no range, no GPS, no bearings
-LOST_SUBSETS = ((0, 2, 3, 4), (0, 1, 2), (1, 3, 4))
+#: the measurement subsets of exercise 18.2: no bearings, no GPS north, bearings only (notebook 18
+#: prints all five, no range, no GPS and GPS only before it)
+LOST_SUBSETS = ((1, 3, 4), (0, 1, 2, 3), (0, 2))
 
 
 def lost_directions(subsets=LOST_SUBSETS, window: int = 10, params: CoopParams | None = None,
@@ -899,7 +900,8 @@ def lost_directions(subsets=LOST_SUBSETS, window: int = 10, params: CoopParams |
     ``window`` samples, with only the rows ``subset`` of H; one integer per subset.
 
     ``exact=True`` uses the exact Jacobian of the one-step map (``jacobian_step``);
-    ``exact=False`` the Euler ``F = I + dt A``, which sees a rotation of the whole scene faintly."""
+    ``exact=False`` the Euler ``F = I + dt A``, which makes a rotation of the whole scene look
+    weakly observable (a small but non-zero singular value)."""
     p = require_instance("params", params, CoopParams, allow_none=True) or CoopParams()
     window = require_int("window", window, minimum=1)
     x = nominal_trajectory(p, window)
@@ -921,35 +923,38 @@ def lost_directions(subsets=LOST_SUBSETS, window: int = 10, params: CoopParams |
 
 LOST_DIRECTIONS = Exercise(
     "18.2",
-    praise="only the GPS pins the pair to the map: without it the common translation (2 directions) and a rotation of the whole scene (1) are lost",
-    hint="build O with observability_matrix(F, H[:, rows]) over the window, F the exact jacobian_step, and count 6 - rank",
+    praise="without the bearings nothing is lost; without the GPS north only the common north shift (1); with the bearings alone the common translation (2) and a rotation of the whole scene (1), while the vehicles' known speeds fix the scale",
+    hint="build O as in the notebook's observability cell, with the rows of each subset, F the exact jacobian_step, and count 6 - rank",
     hints={
         "ranks": "those are ranks; the exercise asks how many directions are lost: 6 - rank",
-        "euler": "that is what the Euler F = I + ΔT A gives: its straight chord breaks the model's invariance under a rotation of the whole scene, so one singular value is small (~1e-5) but not zero. Use the exact Jacobian of the one-step map, jacobian_step: is a rotation of everything visible to two relative bearings and a range?",
-        "no_gps_observable": "without the GPS, move both vehicles by the same vector: does any bearing or the range change?",
-        "no_range_lost": "without the range the two bearings and the UAV's GPS still locate the UGV as the vehicles move: compute the rank rather than guess",
+        "euler": "that is what the Euler F = I + ΔT A gives: its straight chord breaks the model's invariance under a rotation of the whole scene, so one singular value is small (here ~4e-7 of the largest) but not zero. Use the exact Jacobian of the one-step map, jacobian_step: is a rotation of everything visible to two relative bearings?",
+        "north_observable": "without the GPS north, move both vehicles north together: does any bearing, the range or the GPS east change?",
+        "north_both_lost": "the GPS east still pins a common east shift; only the north one is free: compute the rank rather than guess",
+        "bearings_observable": "with the bearings alone, move both vehicles by the same vector: does either bearing change?",
+        "bearings_scale_lost": "two bearings alone fix no distance at one sample, but the vehicles' known speeds over 10 samples fix the scale of the scene: compute the rank",
         "no_bearings_lost": "with the range and the UAV's GPS, one sample puts the UGV on a circle, but its known motion over 10 samples pins it down: compute the rank",
     },
 )
 
 
 def check_lost_directions(answer, *, window: int = 10) -> Feedback:
-    """Exercise 18.2: for the subsets no range ``(0, 2, 3, 4)``, no GPS ``(0, 1, 2)`` and no
-    bearings ``(1, 3, 4)``, the number of state directions that are unobservable over the first
+    """Exercise 18.2: for the subsets no bearings ``(1, 3, 4)``, no GPS north ``(0, 1, 2, 3)`` and
+    bearings only ``(0, 2)``, the number of state directions that are unobservable over the first
     ``window`` samples of the nominal (6 - rank of the stacked observability matrix of the
     linearized DT model with the exact Jacobian of the one-step map); answer: 3 integers.
-    Without the GPS, three directions are lost: the common translation (2) and a rotation of the
-    whole scene (1); the Euler ``F = I + dt A`` hides the rotation (an artefact), hence 2."""
+    Without the GPS north the common north shift is lost (1); with the bearings alone the common
+    translation (2) and a rotation of the whole scene (1); the Euler ``F = I + dt A`` makes the
+    rotation look weakly observable (an artefact), hence 2 there."""
     window = require_int("window", window, minimum=2)
     right = lost_directions(LOST_SUBSETS, window)
     a = as_array(answer)
     if a is not None and a.size == 3 and np.all(np.isfinite(a)) and not np.allclose(a, np.round(a)):
         return LOST_DIRECTIONS.feedback(False, "a number of directions is a whole number: 6 minus a rank")
     pairs = [(N_STATES - right, "ranks"), (lost_directions(LOST_SUBSETS, window, exact=False), "euler"),
-             (right * np.array([1, 0, 1]), "no_gps_observable")]
+             (right * np.array([1, 0, 1]), "north_observable"), (right + np.array([0, 1, 0]), "north_both_lost"),
+             (right * np.array([1, 1, 0]), "bearings_observable"), (right + np.array([0, 0, 1]), "bearings_scale_lost")]
     for lost in (1, 2, 3):
-        pairs.append((right + np.array([lost, 0, 0]), "no_range_lost"))
-        pairs.append((right + np.array([0, 0, lost]), "no_bearings_lost"))
+        pairs.append((right + np.array([lost, 0, 0]), "no_bearings_lost"))
     return LOST_DIRECTIONS.judge(answer, right, distinct_mistakes(pairs, right, 0.0), rtol=0.0, atol=1e-9)
 
 
