@@ -12,7 +12,8 @@ from kfcal_helpers.calibration import (CalibrationParams, covariance_sequence, o
 from kfcal_helpers.calibration.demos import (LIVE_FIGSIZE, CalibrationDemo, CalibrationDemoFigure,
                                              calibration_controls, compute_calibration_demo, draw_calibration_demo,
                                              valid_gps_rates)
-from kfcal_helpers.calibration.exercises import EXERCISES, check_demo_first_fix_sigma, check_demo_ratio_band
+from kfcal_helpers.calibration.exercises import (EXERCISES, check_demo_first_fix_sigma, check_demo_ratio_band,
+                                                 first_fix_sigmas)
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
 
 P = CalibrationParams()
@@ -130,16 +131,23 @@ def _rejected(fb, exercise, key):
 
 
 def test_check_17_1_first_fix_sigma():
-    right = np.sqrt([1 / (1 / 100 + 1 / 9), 1 / (1 / 1 + 1 / 0.0016), 0.01])  # default M0, V with sigma_p = 3 m
+    # default M0, V with sigma_p = sqrt(10) m: the slider's stop 10^0.5 (V[0, 0] = 10 m^2)
+    right = np.sqrt([1 / (1 / 100 + 1 / 10), 1 / (1 / 1 + 1 / 0.0016), 0.01])
     assert check_demo_first_fix_sigma(right).correct
     assert check_demo_first_fix_sigma(list(right)).correct
-    demo = compute_calibration_demo(gps_pos_var=9.0, n_runs=10)
+    demo = compute_calibration_demo(gps_pos_var=10.0, n_runs=10)
     assert np.allclose(demo.sigma[0], right, rtol=1e-12)  # what the slider shows
+    stops = 10 ** (-1 + 0.05 * np.arange(41))              # the GPS sigma_p slider's stops (log scale)
+    slider = calibration_controls()["gps_pos_sigma"]
+    assert (slider.min, slider.max, slider.step, slider.base) == (-1, 1, 0.05, 10)
+    assert np.isclose(stops, 10**0.5, rtol=1e-12).any() and not np.isclose(stops, 3.0, rtol=1e-3).any()
+    assert check_demo_first_fix_sigma(first_fix_sigmas(stops[30])).correct   # the stop dragged to, 10^(-1 + 30 * 0.05)
+    r10 = np.sqrt(10)
     wrong = {
-        "gps_only": [3.0, 0.04, 0.1],
-        "sigma_sum": [1 / (1 / 10 + 1 / 3), 1 / (1 + 1 / 0.04), 0.1],
+        "gps_only": [r10, 0.04, 0.1],
+        "sigma_sum": [1 / (1 / 10 + 1 / r10), 1 / (1 + 1 / 0.04), 0.1],
         "variance": right**2,
-        "variance_sum": [np.sqrt(109), np.sqrt(1.0016), 0.1],
+        "variance_sum": [np.sqrt(110), np.sqrt(1.0016), 0.1],
         "prior": [10.0, 1.0, 0.1],
         "default_gps": np.sqrt([1 / (1 / 100 + 1), 1 / (1 + 1 / 0.0016), 0.01]),
         "bias": [right[0], right[1], 0.05],
@@ -147,7 +155,7 @@ def test_check_17_1_first_fix_sigma():
     for key, value in wrong.items():
         assert _rejected(check_demo_first_fix_sigma(value), "17.1", key), key
     assert not check_demo_first_fix_sigma(...).answered
-    for bad in ("2.87", [1.0, 2.0], None):
+    for bad in ("3.015", [1.0, 2.0], None):
         fb = check_demo_first_fix_sigma(bad)
         assert not fb.correct
     assert check_demo_first_fix_sigma(np.sqrt([1 / (1 / 100 + 1 / 4), 1 / (1 + 625), 0.01]), gps_pos_sigma=2.0).correct

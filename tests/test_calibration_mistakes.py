@@ -138,12 +138,21 @@ def test_check_14_2():
     Phi = error_state_model(P).Phi
     flipped = Phi.copy()
     flipped[0, 2] *= -1
-    k = P.steps_per_fix
-    right = np.linalg.matrix_power(flipped, k)[0, 2] - np.linalg.matrix_power(Phi, k)[0, 2]
+    for k in (200, 40, 7):
+        right = np.linalg.matrix_power(flipped, k)[0, 2] - np.linalg.matrix_power(Phi, k)[0, 2]
+        assert np.isclose(right, k * P.dt**2, rtol=1e-9)
+        assert check_phi02_coupling_change(right, steps=k).correct
+    k = 200                      # the default: one second, not the 40-step fix interval the notebook prints
+    right = k * P.dt**2
     assert check_phi02_coupling_change(right).correct
     for wrong, hint in ((-right, "sign"), (P.dt**2, "one IMU step"), (-(k * P.dt) ** 2 / 2, "coupling itself"),
-                        (k**2 * P.dt**2, "once per step")):
+                        (k**2 * P.dt**2, "once per step"), (P.steps_per_fix * P.dt**2, "fix interval of the default")):
         fb = check_phi02_coupling_change(wrong)
         assert not fb.correct and hint in fb.message
+    # at k = 40 the fix-interval value is the right answer, not a mistake
+    assert check_phi02_coupling_change(P.steps_per_fix * P.dt**2, steps=P.steps_per_fix).correct
     assert "expected shape" in check_phi02_coupling_change([1.0, 2.0]).message
     assert not check_phi02_coupling_change(None).answered
+    for bad in (0, 2.5, "200"):
+        with pytest.raises(ValueError, match="steps"):
+            check_phi02_coupling_change(right, steps=bad)

@@ -1109,27 +1109,31 @@ def check_failing_checks_gps_sigma(answer, *, params: CalibrationParams | None =
 
 _PHI02_COUPLING_CHANGE = Exercise(
     "14.2",
-    praise="the flipped sign changes the coupling by n dt^2 per fix interval",
+    praise="the flipped sign changes the coupling by k dt^2 over k steps",
     hint="multiply out Phi'^k for k = 2 and k = 3 and look at how the [0,2] entry differs",
     hints={
         "sign": "check the sign: which of the two matrices has the larger [0,2] entry?",
-        "one_step": "that is the change over one IMU step; the fix interval has several",
-        "coupling": "that is the coupling itself over a fix interval, not its change",
+        "one_step": "that is the change over one IMU step; the interval asked for has many",
+        "coupling": "that is the coupling itself over the interval, not its change",
         "squared": "the per-step change adds up once per step (it enters Phi^k linearly in k)",
+        "fix_interval": "that is the change over one fix interval of the default 5 Hz GPS; the exercise asks for "
+                        "a longer interval (work out how the change grows with k)",
     },
 )
 
 
-def check_phi02_coupling_change(answer, *, params: CalibrationParams | None = None) -> Feedback:
-    """Exercise 14.2: Phi'^40[0,2] - Phi^40[0,2] in s^2, where Phi' has Phi[0,2] = +dt^2/2 (the
-    flipped sign) and 40 is the number of IMU steps between fixes."""
+def check_phi02_coupling_change(answer, *, steps: int = 200, params: CalibrationParams | None = None) -> Feedback:
+    """Exercise 14.2: Phi'^k[0,2] - Phi^k[0,2] in s^2 for k = ``steps`` IMU steps (default 200: one
+    second, the fix interval of a 1 Hz GPS), where Phi' has Phi[0,2] = +dt^2/2 (the flipped sign)."""
     ex = _PHI02_COUPLING_CHANGE
+    k = require_int("steps", steps, minimum=1)
     p = require_instance("params", params, CalibrationParams, allow_none=True) or CalibrationParams()
-    n, dt = p.steps_per_fix, p.dt
-    right = n * dt**2
-    wrong = [(-right, "sign"), (dt**2, "one_step"), (-(n * dt) ** 2 / 2, "coupling"), (n**2 * dt**2, "squared")]
-    return replace(ex, praise=f"the flipped sign changes the coupling by {right:.0e} s^2 per fix interval").judge(
-        answer, right, wrong, rtol=1e-6)
+    dt = p.dt
+    right = k * dt**2
+    wrong = distinct_mistakes([(-right, "sign"), (dt**2, "one_step"), (-(k * dt) ** 2 / 2, "coupling"),
+                               (k**2 * dt**2, "squared"), (p.steps_per_fix * dt**2, "fix_interval")], right, 1e-6)
+    return replace(ex, praise=f"the flipped sign changes the coupling by k dt^2 = {right:.0e} s^2 over k = {k} "
+                              "steps").judge(answer, right, wrong, rtol=1e-6)
 
 
 # ----------------------------------------------------------------------------------------
@@ -1170,10 +1174,11 @@ _DEMO_FIRST_FIX_SIGMA = Exercise(
 )
 
 
-def check_demo_first_fix_sigma(answer, *, gps_pos_sigma: float = 3.0) -> Feedback:
+def check_demo_first_fix_sigma(answer, *, gps_pos_sigma: float = 10**0.5) -> Feedback:
     """Exercise 17.1: the a posteriori ``[σ_p, σ_v, σ_b]`` (m, m/s, m/s²), shape (3,), right
-    after the first fix at t = 0 when the GPS position noise has σ = ``gps_pos_sigma`` m (the
-    other parameters the defaults: M0 = diag(100, 1, 0.01), GPS velocity variance 0.0016)."""
+    after the first fix at t = 0 when the GPS position noise has σ = ``gps_pos_sigma`` m (default
+    sqrt(10) ≈ 3.16 m, a stop of the demo's log-scale slider; the other parameters the defaults:
+    M0 = diag(100, 1, 0.01), GPS velocity variance 0.0016)."""
     ex = _DEMO_FIRST_FIX_SIGMA
     gps_pos_sigma = require_positive("gps_pos_sigma", gps_pos_sigma)
     p = CalibrationParams()
