@@ -107,7 +107,7 @@ def plot_covariance_sawtooth(params: CalibrationParams, result: FilterResult, t_
     fig, axes = plt.subplots(1, 2, figsize=figsize or (10, 3.6))
     at_fix = params.t_gps <= t_max
     for ax, k, unit in ((axes[0], 0, "m"), (axes[1], 1, "m/s")):
-        _ = ax.plot(t[sel], sig[sel, k], lw=line_width(0.7))
+        _ = ax.plot(t[sel], sig[sel, k], lw=line_width(0.7), label="σ at every IMU sample")
         _ = ax.plot(params.t_gps[at_fix], sig[params.fix_indices][at_fix, k],
                     "o", ms=marker_size(0.5), label="a posteriori at fixes")
         ax.set_yscale("log")
