@@ -16,6 +16,8 @@ from kfcal_helpers.calibration.exercises import (EXERCISES, check_demo_first_fix
                                                  first_fix_sigmas)
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
 
+from demo_checks import check_render
+
 P = CalibrationParams()
 HINTS = {i: EXERCISES[i].hints for i in ("17.1", "17.2")}
 
@@ -202,11 +204,6 @@ def calibration_demo_for(gps_rate=5.0, W=4e-4, gps_pos_sigma=1.0, bias_sigma=0.1
                                     outage=window, n_runs=200, seed=17)
 
 
-def _png_size(png):
-    from PIL import Image
-    import io
-
-    return Image.open(io.BytesIO(png)).size
 
 
 def test_live_demo_validates():
@@ -248,18 +245,6 @@ def test_describe_calibration_controls():
                                                          "bias prior σ [m/s²] 0.1; outage window [s] 12–18; on: GPS outage")
 
 
-def _check_render(live, values):
-    """One redraw of the grid: never raises or warns; the title matches what is drawn."""
-    import warnings
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        png, line, ok = live.render(**values)
-    assert png[:4] == b"\x89PNG" and "\n" not in line
-    assert _png_size(png) == tuple(round(s * live.view.fig.dpi) for s in live.view.fig.get_size_inches())
-    if not ok:
-        assert describe_controls(live.controls, values) in live.message_fig.get_suptitle()
-    return ok
 
 
 def test_calibration_demo_over_a_grid_of_controls():
@@ -275,6 +260,6 @@ def test_calibration_demo_over_a_grid_of_controls():
             for on, window in outages:
                 values = {"gps_rate": rate, **{k: 10.0 ** v for k, v in corner.items()}, "outage_on": on,
                           "outage": window}
-                if _check_render(live, values):
+                if check_render(live, values):
                     title = live.view.axes[0].get_title()
                     assert f"GPS {rate:g} Hz" in title and (("outage" in title) == (on and window[0] < window[1]))

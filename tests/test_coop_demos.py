@@ -20,6 +20,8 @@ from kfcal_helpers.coop.demos import (LIVE_FIGSIZE, MEASUREMENT_NAMES, CoopDemoF
 from kfcal_helpers.coop.exercises import EXERCISES, check_lost_directions, check_subset_nis_bounds
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
 
+from demo_checks import check_render, png_size
+
 SHORT = replace(CoopParams(), duration=20.0)
 
 
@@ -234,18 +236,13 @@ def _coop_live(log):
                     empty="tick at least one measurement", hint="try a smaller Q / Qtrue")
 
 
-def _png_size(png):
-    from PIL import Image
-    import io
-
-    return Image.open(io.BytesIO(png)).size
 
 
 def test_live_demo_shows_the_figure_and_follows_the_controls(log):
     live = _coop_live(log)
     assert not live.failed and "5 measurements" in live.line.value
     first = live.image.value
-    assert _png_size(first) == tuple(round(s * live.view.fig.dpi) for s in LIVE_FIGSIZE)
+    assert png_size(first) == tuple(round(s * live.view.fig.dpi) for s in LIVE_FIGSIZE)
     live.controls["m1"].value = False  # untick the range: the observer recomputes and redraws
     assert not live.failed and live.image.value != first
     assert "4 measurements" in live.line.value and "range" not in live.view.fig.get_suptitle().split("\n")[0]
@@ -288,7 +285,7 @@ def test_a_failing_filter_draws_a_one_line_message(log, monkeypatch, error, says
     assert "Traceback" not in line and "\n" not in line and "try a smaller Q / Qtrue" in line
     # the image: same size, no axes, the settings of the failed redraw as its title, one line of message
     fig = live.message_fig
-    assert _png_size(live.image.value) == _png_size(good) and live.image.value != good
+    assert png_size(live.image.value) == png_size(good) and live.image.value != good
     message = [t.get_text() for t in fig.texts if t.get_text() != fig.get_suptitle()]
     assert not fig.axes and len(message) == 1 and "\n" not in message[0] and message[0] in line
     title = fig.get_suptitle()
@@ -340,18 +337,6 @@ def test_describe_controls():
     assert describe_controls(c, {"filter": "ukf", "m1": False, "m3": False, "m4": False}).endswith("on: none ticked")
 
 
-def _check_render(live, values):
-    """One redraw of the grid: never raises or warns; the title matches what is drawn."""
-    import warnings
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        png, line, ok = live.render(**values)
-    assert png[:4] == b"\x89PNG" and "\n" not in line
-    assert _png_size(png) == tuple(round(s * live.view.fig.dpi) for s in live.view.fig.get_size_inches())
-    if not ok:
-        assert describe_controls(live.controls, values) in live.message_fig.get_suptitle()
-    return ok
 
 
 #: slider positions (the ends, the default, and 2.51 and 3.16, where the UKF lost positive definiteness
@@ -368,7 +353,7 @@ def test_coop_demo_over_a_grid_of_controls(log, filter):
     for q in positions:
         for label, subset in COOP_SUBSETS.items():
             values = {"filter": filter, "q_scale": q, **{f"m{i}": i in subset for i in range(5)}}
-            ok = outcome[q, label] = _check_render(live, values)
+            ok = outcome[q, label] = check_render(live, values)
             if ok:
                 title = live.view.fig.get_suptitle()
                 assert title.startswith(f"{filter.upper()}, Q = {q:.3g} Qtrue, measurements: "

@@ -3,7 +3,6 @@ a redraw per change, and a one-line message instead of any traceback or warning.
 demos are tested in tests/test_calibration_demos.py and tests/test_coop_demos.py."""
 
 import dataclasses
-import io
 import warnings
 
 import ipywidgets as w
@@ -13,6 +12,8 @@ from matplotlib.figure import Figure
 
 from kfcal_helpers.demos import (DEMO_FAILURES, LiveDemo, describe_controls, failure_message, figure_png, new_figure,
                                  require_finite_demo)
+
+from demo_checks import png_size
 
 
 @dataclasses.dataclass
@@ -52,10 +53,6 @@ def toy_compute(gain=1.0, on=True, kind="up"):
     return ToyDemo(gain, sign * gain * np.array([0.0, 1.0]))
 
 
-def _png_size(png):
-    from PIL import Image
-
-    return Image.open(io.BytesIO(png)).size
 
 
 def _live():
@@ -67,7 +64,7 @@ def test_live_demo_shows_the_figure_and_follows_the_controls():
     live = _live()
     assert not live.failed and "gain 1.00" in live.line.value
     first = live.image.value
-    assert first[:4] == b"\x89PNG" and _png_size(first) == tuple(round(s * live.view.fig.dpi) for s in (4.0, 3.0))
+    assert first[:4] == b"\x89PNG" and png_size(first) == tuple(round(s * live.view.fig.dpi) for s in (4.0, 3.0))
     live.controls["gain"].value = 2.0
     assert not live.failed and live.image.value != first and "gain 2.00" in live.line.value
     column, right = live.widget.children
@@ -98,7 +95,7 @@ def test_a_failing_compute_draws_a_one_line_message(error, says):
     line = live.line.value
     assert says in line and "Traceback" not in line and "\n" not in line and "try a smaller gain" in line
     fig = live.message_fig
-    assert _png_size(live.image.value) == _png_size(good) and live.image.value != good
+    assert png_size(live.image.value) == png_size(good) and live.image.value != good
     message = [t.get_text() for t in fig.texts if t.get_text() != fig.get_suptitle()]
     assert not fig.axes and len(message) == 1 and "\n" not in message[0] and message[0] in line
     assert "gain 3" in fig.get_suptitle() and "not drawn" in fig.get_suptitle()
