@@ -45,3 +45,16 @@ def test_distinct_mistakes_drops_mistakes_equal_to_the_answer():
 def test_unknown_mistake_key_is_a_programming_error():
     with pytest.raises(KeyError):
         EX.judge(1.0, 2.0, [(1.0, "nope")])
+
+
+def test_the_nearest_of_right_value_and_mistakes_decides_for_a_rounded_answer():
+    right, off_by_one = 1.0, 1.0008   # a mistake within 1e-3 of the right value
+    ex = Exercise("99.4", praise="right", hint="generic", hints={"count": "count the steps again"})
+    assert ex.judge(1.0007, right, [(off_by_one, "count")]).message == "count the steps again"
+    assert ex.judge(1.0001, right, [(off_by_one, "count")]).message == ROUNDED_HINT
+
+
+def test_a_matrix_rounded_to_fixed_decimals_counts_as_close():
+    K = np.array([[0.0975, 1.2e-4], [3.3e-3, 0.91], [-7.1e-8, 2.5e-5]])
+    fb = EX.judge(np.round(K, 4), K)  # small entries lose all their digits, the matrix is still close
+    assert not fb.correct and fb.message == ROUNDED_HINT

@@ -27,8 +27,8 @@ PLACEHOLDER = "replace ... with your answer"
 #: an answer this close (relative) to the expected value, but not within the check's own tolerance, is
 #: taken for the right value rounded (digits copied from a printout) and gets :data:`ROUNDED_HINT`
 ROUNDED_RTOL = 1e-3
-ROUNDED_HINT = ("close, but not exactly: pass the value you computed (a variable or an expression), "
-                "not digits copied from a printout")
+ROUNDED_HINT = ("close, but not exactly: pass the value you computed (a variable or an expression), not digits "
+                "copied from a printout; if you did, look for a small difference of method")
 PLACEHOLDER_FUNC = "write the body of your function (replace ... with your code), then pass the function to the check"
 
 
@@ -178,8 +178,9 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
         hint that points at that mistake (never the answer itself)
     hint : the hint when the answer is neither right nor a known mistake
     A shape different from the expected one gets its own hint.  An answer within
-    :data:`ROUNDED_RTOL` of the expected value (a rounded copy of a printout) is told so; one within
-    it of a known mistake's value gets that mistake's hint.
+    :data:`ROUNDED_RTOL` (relative to the largest entry) of the expected value or of a known mistake's
+    value gets the message of the nearest of them: :data:`ROUNDED_HINT` (a rounded copy of the right
+    value) or that mistake's hint (a rounded copy of a wrong one).
     """
     if unanswered(answer):
         return Feedback(exercise, False, placeholder, answered=False)
@@ -189,17 +190,34 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
         if matches(answer, value, rtol, atol):
             return Feedback(exercise, False, why)
     if rtol < ROUNDED_RTOL:
-        if matches(answer, expected, ROUNDED_RTOL, atol):
-            return Feedback(exercise, False, ROUNDED_HINT)
-        for value, why in wrong:
-            if matches(answer, value, ROUNDED_RTOL, atol):
-                return Feedback(exercise, False, why)
+        near = _nearest(answer, [(expected, ROUNDED_HINT), *wrong])
+        if near is not None:
+            return Feedback(exercise, False, near)
     a, e = as_array(answer), np.asarray(expected, dtype=float)
     if a is None:
         return Feedback(exercise, False, f"expected numbers (an array of shape {e.shape}), got {type(answer).__name__}")
     if a.size != e.size:
         return Feedback(exercise, False, f"expected shape {e.shape}, got {a.shape}")
     return Feedback(exercise, False, hint)
+
+
+def _nearest(answer, candidates):
+    """The message of the candidate ``(value, message)`` nearest to ``answer`` when it is within
+    :data:`ROUNDED_RTOL` of it, relative to the candidate's largest entry (so a matrix rounded to a few
+    decimals counts as close too); None when no candidate is that close or the shapes differ."""
+    a = as_array(answer)
+    best, best_d = None, ROUNDED_RTOL
+    for value, message in candidates:
+        v = np.asarray(value, dtype=float)
+        if a is None or a.size != v.size or not np.all(np.isfinite(a)):
+            continue
+        scale = np.max(np.abs(v))
+        if scale == 0:
+            continue
+        d = float(np.max(np.abs(a.reshape(v.shape) - v)) / scale)
+        if d <= best_d:
+            best, best_d = message, d
+    return best
 
 
 def chi2_average_bounds(dim: int, n: int, alpha: float, *, dof: int | None = None, divide_by: float | None = None,
