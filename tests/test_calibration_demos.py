@@ -15,6 +15,7 @@ from kfcal_helpers.calibration.demos import (LIVE_FIGSIZE, CalibrationDemo, Cali
 from kfcal_helpers.calibration.exercises import (EXERCISES, check_demo_first_fix_sigma, check_demo_ratio_band,
                                                  first_fix_sigmas)
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
+from kfcal_helpers.exercises import ROUNDED_HINT, ROUNDED_RTOL
 
 from demo_checks import check_render
 
@@ -141,7 +142,7 @@ def test_check_17_1_first_fix_sigma():
     assert np.allclose(demo.sigma[0], right, rtol=1e-12)  # what the slider shows
     stops = 10 ** (-1 + 0.05 * np.arange(41))              # the GPS sigma_p slider's stops (log scale)
     slider = calibration_controls()["gps_pos_sigma"]
-    assert (slider.min, slider.max, slider.step, slider.base) == (-1, 1, 0.05, 10)
+    assert (slider.min, slider.max, slider.step, slider.base, slider.readout_format) == (-1, 1, 0.05, 10, ".2f")
     assert np.isclose(stops, 10**0.5, rtol=1e-12).any() and not np.isclose(stops, 3.0, rtol=1e-3).any()
     assert check_demo_first_fix_sigma(first_fix_sigmas(stops[30])).correct   # the stop dragged to, 10^(-1 + 30 * 0.05)
     r10 = np.sqrt(10)
@@ -153,9 +154,18 @@ def test_check_17_1_first_fix_sigma():
         "prior": [10.0, 1.0, 0.1],
         "default_gps": np.sqrt([1 / (1 / 100 + 1), 1 / (1 + 1 / 0.0016), 0.01]),
         "bias": [right[0], right[1], 0.05],
+        "rounded_readout": np.sqrt([1 / (1 / 100 + 1 / 3.16**2), 1 / (1 + 1 / 0.0016), 0.01]),  # sigma_p 3.0131
     }
     for key, value in wrong.items():
         assert _rejected(check_demo_first_fix_sigma(value), "17.1", key), key
+    # sigma_p computed from the 3.16 readout is 6.6e-4 (relative) below the right one: outside the check's 1e-4,
+    # inside ROUNDED_RTOL, where the generic "digits copied from a printout" hint would mislead
+    assert 1e-4 < abs(wrong["rounded_readout"][0] / right[0] - 1) < ROUNDED_RTOL
+    four_digits = lambda a: [float(f"{x:.4g}") for x in a]  # noqa: E731  the exercise's 4 significant digits
+    assert four_digits(wrong["rounded_readout"]) == [3.013, 0.03997, 0.1]
+    assert _rejected(check_demo_first_fix_sigma(four_digits(wrong["rounded_readout"])), "17.1", "rounded_readout")
+    assert check_demo_first_fix_sigma(four_digits(right)).correct         # [3.015, 0.03997, 0.1]
+    assert check_demo_first_fix_sigma([3.014, 0.03997, 0.1]).message == ROUNDED_HINT  # near, but no known mistake
     assert not check_demo_first_fix_sigma(...).answered
     for bad in ("3.015", [1.0, 2.0], None):
         fb = check_demo_first_fix_sigma(bad)

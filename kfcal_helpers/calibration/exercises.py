@@ -1170,6 +1170,8 @@ _DEMO_FIRST_FIX_SIGMA = Exercise(
         "default_gps": "use the exercise's GPS position σ (the slider value), not the default 1 m",
         "bias": "position and velocity are right; but at t = 0 nothing links the bias to p or v yet "
                 "(M0 is diagonal), so the first fix cannot change σ_b",
+        "rounded_readout": "the readout rounds the slider's value to 2 decimals (3.16 for the stop 10 ** 0.5): "
+                           "compute with the exact value (V[0,0] = 10 m² at that stop), not the rounded readout",
     },
 )
 
@@ -1194,6 +1196,7 @@ def check_demo_first_fix_sigma(answer, *, gps_pos_sigma: float = 10**0.5) -> Fee
         (np.r_[np.sqrt(prior[:2] ** 2 + meas[:2] ** 2), prior[2]], "variance_sum"),
         (prior, "prior"),
         (first_fix_sigmas(np.sqrt(p.gps_pos_var), p), "default_gps"),
+        (first_fix_sigmas(round(gps_pos_sigma, 2), p), "rounded_readout"),  # the .2f readout, not the stop
     ]
     a = as_array(answer)
     if (a is not None and a.size == 3 and np.all(np.isfinite(a))
