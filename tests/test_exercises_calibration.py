@@ -419,6 +419,23 @@ def test_function_checks_survive_half_written_functions(exercise):
         assert not fb.correct and fb.answered and "expected a function" in fb.message
 
 
+def test_apparent_bias_accepts_a_differenced_answer():
+    from kfcal_helpers.calibration import acceleration
+    from kfcal_helpers.exercises._core import ROUNDED_HINT
+
+    p = CalibrationParams(omega=2 * np.pi * 0.1)
+    right = p.dt / 2 * p.A * p.omega
+    a = acceleration(p.t_imu, p)
+    # what a student computes by differencing the sampled acceleration: off by about (ωΔt)²/6
+    for answer in (np.abs(p.dt / 2 * np.diff(a) / p.dt).max(), np.abs(p.dt / 2 * np.gradient(a, p.dt)).max()):
+        assert 1e-6 < abs(answer / right - 1) < 1e-5
+        assert ex.check_apparent_bias(answer).correct
+    # digits copied from a printout are still told so
+    for copied in (0.0157, 0.01571, float(f"{right:.3g}")):
+        fb = ex.check_apparent_bias(copied)
+        assert not fb.correct and fb.message == ROUNDED_HINT
+
+
 def test_mismatch_failures_check():
     check = ex.check_mismatch_failures
     m = error_state_model(CalibrationParams())
