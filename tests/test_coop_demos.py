@@ -210,7 +210,8 @@ def test_check_18_2_lost_directions():
     assert np.allclose(measurement_residual(measure(rot)[:, :3], measure(x)[:, :3]), 0, atol=1e-12)
     assert check_lost_directions(counts).correct and check_lost_directions(np.array(counts, float)).correct
     wrong = {"ranks": [6, 5, 3], "euler": [0, 1, 2], "north_observable": [0, 0, 3], "north_both_lost": [0, 2, 3],
-             "bearings_observable": [0, 1, 0], "bearings_scale_lost": [0, 1, 4], "no_bearings_lost": [1, 1, 3]}
+             "bearings_observable": [0, 1, 0], "bearings_scale_lost": [0, 1, 4], "no_bearings_lost": [1, 1, 3],
+             "reversed": [3, 1, 0]}
     for key, value in wrong.items():
         assert _rejected(check_lost_directions(value), "18.2", key), key
     assert "whole number" in check_lost_directions([0, 1.5, 3]).message

@@ -901,7 +901,8 @@ def lost_directions(subsets=LOST_SUBSETS, window: int = 10, params: CoopParams |
 
     ``exact=True`` uses the exact Jacobian of the one-step map (``jacobian_step``);
     ``exact=False`` the Euler ``F = I + dt A``, which makes a rotation of the whole scene look
-    weakly observable (a small but non-zero singular value)."""
+    weakly observable (a small but non-zero singular value), because it is the Jacobian of the
+    Euler step and not of the arcs that generated the nominal."""
     p = require_instance("params", params, CoopParams, allow_none=True) or CoopParams()
     window = require_int("window", window, minimum=1)
     x = nominal_trajectory(p, window)
@@ -927,7 +928,8 @@ LOST_DIRECTIONS = Exercise(
     hint="build O as in the notebook's observability cell, with the rows of each subset, F the exact jacobian_step, and count 6 - rank",
     hints={
         "ranks": "those are ranks; the exercise asks how many directions are lost: 6 - rank",
-        "euler": "that is what the Euler F = I + ΔT A gives: its straight chord breaks the model's invariance under a rotation of the whole scene, so one singular value is small (here ~4e-7 of the largest) but not zero. Use the exact Jacobian of the one-step map, jacobian_step: is a rotation of everything visible to two relative bearings?",
+        "euler": "that is what the Euler F = I + ΔT A gives along this nominal: it is the derivative of the Euler step x + ΔT f(x), not of the arcs that generated the nominal, so it carries a rotation of the scene at x*_k to the rotation at the Euler point, which misses x*_{k+1} by O(ΔT²); one singular value is then small (here ~4e-7 of the largest) but not zero. Use the exact Jacobian of the one-step map, jacobian_step: is a rotation of everything visible to two relative bearings?",
+        "reversed": "right counts, wrong order: give them as [no bearings, no GPS north, bearings only]",
         "north_observable": "without the GPS north, move both vehicles north together: does any bearing, the range or the GPS east change?",
         "north_both_lost": "the GPS east still pins a common east shift; only the north one is free: compute the rank rather than guess",
         "bearings_observable": "with the bearings alone, move both vehicles by the same vector: does either bearing change?",
@@ -944,7 +946,8 @@ def check_lost_directions(answer, *, window: int = 10) -> Feedback:
     linearized DT model with the exact Jacobian of the one-step map); answer: 3 integers.
     Without the GPS north the common north shift is lost (1); with the bearings alone the common
     translation (2) and a rotation of the whole scene (1); the Euler ``F = I + dt A`` makes the
-    rotation look weakly observable (an artefact), hence 2 there."""
+    rotation look weakly observable, hence 2 there: it is the Jacobian of the Euler step, not of the
+    arcs that generated the nominal (an artefact of that mismatch, not information)."""
     window = require_int("window", window, minimum=2)
     right = lost_directions(LOST_SUBSETS, window)
     a = as_array(answer)
@@ -952,7 +955,8 @@ def check_lost_directions(answer, *, window: int = 10) -> Feedback:
         return LOST_DIRECTIONS.feedback(False, "a number of directions is a whole number: 6 minus a rank")
     pairs = [(N_STATES - right, "ranks"), (lost_directions(LOST_SUBSETS, window, exact=False), "euler"),
              (right * np.array([1, 0, 1]), "north_observable"), (right + np.array([0, 1, 0]), "north_both_lost"),
-             (right * np.array([1, 1, 0]), "bearings_observable"), (right + np.array([0, 0, 1]), "bearings_scale_lost")]
+             (right * np.array([1, 1, 0]), "bearings_observable"), (right + np.array([0, 0, 1]), "bearings_scale_lost"),
+             (right[::-1], "reversed")]
     for lost in (1, 2, 3):
         pairs.append((right + np.array([lost, 0, 0]), "no_bearings_lost"))
     return LOST_DIRECTIONS.judge(answer, right, distinct_mistakes(pairs, right, 0.0), rtol=0.0, atol=1e-9)

@@ -532,9 +532,12 @@ def jacobian_step(x, u, dt: float = 0.1, L: float = 0.5) -> np.ndarray:
     """Exact DT state Jacobian ``d step(x, u) / dx`` of the closed-form one-step map, shape (..., 6, 6).
 
     The identity plus, for each vehicle, the heading column ``d [-sin(m), cos(m)]`` with ``d`` the
-    chord ``v dt sinc(w dt / 2)`` and ``m = theta + w dt / 2`` its direction.  ``I + dt A`` is its
-    Euler approximation (chord ``v dt`` along ``theta``): both agree to first order in ``dt``, but only
-    this one keeps the model's invariance under a rotation of the whole scene.
+    chord ``v dt sinc(w dt / 2)`` and ``m = theta + w dt / 2`` its direction.  ``I + dt A`` is the
+    Jacobian of the Euler map ``x + dt f(x)`` (chord ``v dt`` along ``theta``): both agree to first order
+    in ``dt``.  Along the arcs of :func:`step` (the nominal of :func:`nominal_trajectory`) only this one
+    is the derivative of the map that generated the trajectory: it carries a rotation of the scene at
+    ``x_k`` into the rotation at ``x_{k+1}`` exactly, while ``I + dt A`` carries it to the rotation at the
+    Euler point ``x_k + dt f(x_k)``, which misses ``x_{k+1}`` by O(dt^2).
     """
     x = require_last_axis("x", x, N_STATES)
     u = require_last_axis("u", u, 4)

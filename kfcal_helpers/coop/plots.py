@@ -164,7 +164,7 @@ def plot_consistency(mc, title: str | None = None, figsize=None):
         ax.set_title(f"{name}: {100 * frac:.1f}% inside [{bounds[0]:.2f}, {bounds[1]:.2f}]")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper right")
-    fig.suptitle(title or f"{mc.filter.upper()} truth-model test, alpha = {mc.alpha:g}")
+    fig.suptitle(title or f"{mc.filter.upper()} truth-model test, significance {mc.alpha:g}")
     fig.tight_layout()
     return fig
 
@@ -240,7 +240,7 @@ def plot_runs_consistency(mc, title: str | None = None, figsize=None, ylim=None)
         _ = ax.plot(tt.ravel(), values[:, ok].ravel(), ".", ms=ms, color="0.6", alpha=0.3, rasterized=True,
                     label=f"each of the {mc.n_runs} runs")
         _ = ax.plot(mc.t[ok], mean[ok], "-", color="C0", lw=line_width(0.8), label=f"average of {mc.n_runs} runs")
-        for b, lab in zip(bounds, (f"χ² bounds of the average, α = {mc.alpha:g}", None)):
+        for b, lab in zip(bounds, (f"χ² bounds of the average, significance {mc.alpha:g}", None)):
             _ = ax.axhline(b, color="k", ls="--", lw=line_width(0.8), label=lab)
         ax.set_yscale("log")
         if ylim is not None:
@@ -253,5 +253,5 @@ def plot_runs_consistency(mc, title: str | None = None, figsize=None, ylim=None)
     # one legend below both panels: inside either it would hide run points
     fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncol=3, markerscale=6,
                frameon=False)
-    fig.suptitle(title or f"{mc.filter.upper()} truth-model test, alpha = {mc.alpha:g}")
+    fig.suptitle(title or f"{mc.filter.upper()} truth-model test, significance {mc.alpha:g}")
     return fig
