@@ -13,7 +13,7 @@ import kfcal_helpers.calibration.exercises as ex
 from kfcal_helpers.calibration import (CalibrationParams, covariance_sequence, error_state_model,
                                        rts_smooth_fixes, run_monte_carlo)
 from kfcal_helpers.calibration.exercises import EXERCISES
-from kfcal_helpers.exercises._core import Exercise, Feedback
+from kfcal_helpers.exercises._core import ROUNDED_HINT, Exercise, Feedback
 
 #: the records' hints, generic hints and praise, by exercise id
 HINTS = {i: e.hints for i, e in EXERCISES.items()}
@@ -119,13 +119,16 @@ def cases():
     out["02.2"] = (ex.check_imu_random_walk, [sig_p, sig_v],
                    [("variance", [sig_p**2, sig_v**2]), ("rate", [sig_p200, np.sqrt(W * DT * 20)]),
                     ("no_dt", [np.sqrt(W * 8000 / 3), np.sqrt(W * 20)]), ("linear", [0.02 * 200, 0.02 * 20]),
-                    ("swapped", [sig_v, sig_p]), ("no_third", [np.sqrt(W * dt * 8000), sig_v])],
+                    ("swapped", [sig_v, sig_p]), ("no_third", [np.sqrt(W * dt * 8000), sig_v]),
+                    *[("steps", [np.sqrt(W * dt**4 * np.sum((np.arange(m) + 0.5) ** 2)), np.sqrt(W * m) * dt])
+                      for m in (n - 1, n + 1)]],
                    [[np.sqrt(W * dt * 8000 / 3), sig_v]])
     # 02.3 --------------------------------------------------------------------------------
     out["02.3"] = (ex.check_imu_std_band, 0.02 * np.sqrt(two_sided(49, 49)),
                    [("n_dof", 0.02 * np.sqrt(two_sided(50, 50))), ("variance", 4e-4 * two_sided(49, 49)),
                     ("one_sided", 0.02 * np.sqrt(two_sided(49, 49, alpha=0.1))),
-                    ("no_divide", 0.02 * np.sqrt(two_sided(49, 1)))], [])
+                    ("no_divide", 0.02 * np.sqrt(two_sided(49, 1))),
+                    ("normal", 0.02 * (1 + np.array([-1, 1]) * stats.norm.ppf(0.975) / np.sqrt(98)))], [])
     # 03.1 --------------------------------------------------------------------------------
     idx = [50 * i for i in range(121)]
     out["03.1"] = (ex.check_gps_fix_indices, idx,
@@ -489,6 +492,21 @@ def test_settings_are_keyword_only():
 
 def _numbers(text):
     return [float(x) for x in re.findall(r"(?<![\w.])\d+(?:\.\d+)?(?:e-?\d+)?", text)]
+
+
+@pytest.mark.parametrize("exercise", ["02.2", "02.3"])
+def test_four_significant_figures_get_the_message_of_what_was_rounded(exercise):
+    """Copied to 4 significant figures, the right value is told it is rounded and each mistake that
+    lies within 1e-3 of it (02.2 step count off by one, 02.3 normal approximation) gets its own hint."""
+    check, right, wrong, _ = CASES[exercise]
+    fig4 = lambda x: np.array([float(f"{v:.4g}") for v in np.ravel(x)])  # noqa: E731
+    assert not check(fig4(right)).correct and check(fig4(right)).message == ROUNDED_HINT
+    near = [(k, w) for k, w in wrong if k in ("steps", "normal")]
+    assert len(near) == {"02.2": 2, "02.3": 1}[exercise]
+    for key, answer in near:
+        assert np.max(np.abs(np.asarray(answer) - right)) / np.max(np.abs(right)) < 1e-3  # the case in point
+        fb = check(fig4(answer))
+        assert not fb.correct and HINTS[exercise][key] in fb.message, (key, str(fb))
 
 
 @pytest.mark.parametrize("exercise", NUMERIC)

@@ -295,6 +295,8 @@ _IMU_RANDOM_WALK = Exercise(
         "linear": "independent noise samples add in variance, not in amplitude: a random walk grows like √t",
         "swapped": "give [σ_p, σ_v] in this order: position first",
         "no_third": "check the constant in the position variance: Σ(m + 1/2)² over m < j is about j³/3",
+        "steps": "check the step count: the noise samples before t number n = t/Δt (samples 0 … n-1), not one "
+                 "more or one less",
     },
 )
 
@@ -305,15 +307,15 @@ def check_imu_random_walk(answer, *, imu_rate: float = 100.0, W: float = 4e-4, t
     after ``t`` seconds. Accepts the exact σ_p or σ_p ≈ √(WΔt t³/3) (rtol 1e-4)."""
     imu_rate, W, t = (require_positive(n, x) for n, x in (("imu_rate", imu_rate), ("W", W), ("t", t)))
 
-    def exact(dt):
-        j = t / dt
-        return np.array([np.sqrt(W * dt**4 * (j**3 / 3 - j / 12)), np.sqrt(W * dt * t)])
+    def exact(dt, extra=0):
+        j = t / dt + extra
+        return np.array([np.sqrt(W * dt**4 * (j**3 / 3 - j / 12)), np.sqrt(W * dt**2 * j)])
 
     dt = 1.0 / imu_rate
     right = exact(dt)
     wrong = [("variance", right**2), ("rate", exact(0.005)), ("no_dt", [np.sqrt(W * t**3 / 3), np.sqrt(W * t)]),
              ("linear", [np.sqrt(W) * t**2 / 2, np.sqrt(W) * t]), ("swapped", right[::-1]),
-             ("no_third", [np.sqrt(W * dt * t**3), right[1]])]
+             ("no_third", [np.sqrt(W * dt * t**3), right[1]]), ("steps", exact(dt, -1)), ("steps", exact(dt, 1))]
     return _numeric(_IMU_RANDOM_WALK, answer, right, wrong, rtol=1e-4)
 
 
@@ -326,6 +328,8 @@ _IMU_STD_BAND = Exercise(
         "variance": "this is the band of the sample variance: the exercise asks for the standard deviation",
         "one_sided": "a two-sided 95 % band puts α/2 = 2.5 % in each tail, not 5 %",
         "no_divide": "(n-1)s²/σ² is χ²: divide the quantiles by the degrees of freedom before taking the root",
+        "normal": "close, but that is the normal approximation σ(1 ± z/√(2(n-1))): use the exact chi-square "
+                  "quantiles",
     },
 )
 
@@ -337,10 +341,12 @@ def check_imu_std_band(answer, *, sigma: float = 0.02, n: int = 50, alpha: float
     n = require_int("n", n, minimum=2)
     alpha = require_probability("alpha", alpha)
     right = sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha))
+    z = stats.norm.ppf(1 - alpha / 2)
     wrong = [("n_dof", sigma * np.sqrt(chi2_average_bounds(1, n, alpha))),
              ("variance", sigma**2 * chi2_average_bounds(1, n - 1, alpha)),
              ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, one_sided=True))),
-             ("no_divide", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, divide_by=1)))]
+             ("no_divide", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, divide_by=1))),
+             ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * (n - 1))))]
     return _numeric(_IMU_STD_BAND, answer, right, wrong)
 
 
