@@ -165,7 +165,7 @@ def test_check_17_1_first_fix_sigma():
     assert four_digits(wrong["rounded_readout"]) == [3.013, 0.03997, 0.1]
     assert _rejected(check_demo_first_fix_sigma(four_digits(wrong["rounded_readout"])), "17.1", "rounded_readout")
     assert check_demo_first_fix_sigma(four_digits(right)).correct         # [3.015, 0.03997, 0.1]
-    assert check_demo_first_fix_sigma([3.014, 0.03997, 0.1]).message == ROUNDED_HINT  # near, but no known mistake
+    assert check_demo_first_fix_sigma([3.0156, 0.03997, 0.1]).message == ROUNDED_HINT  # nearer the right value than any mistake
     assert not check_demo_first_fix_sigma(...).answered
     for bad in ("3.015", [1.0, 2.0], None):
         fb = check_demo_first_fix_sigma(bad)
