@@ -145,11 +145,14 @@ class Check:
 
 @runtime_checkable
 class MonteCarloSummary(Protocol):
-    """What every problem's Monte Carlo result offers: ``n_runs`` (realizations), ``alpha``
-    (significance of the bands) and ``checks()``, the checks by name."""
+    """What every problem's Monte Carlo result offers (:func:`kfcal_helpers.montecarlo.run` makes
+    them): ``n_runs`` (realizations), ``alpha`` (significance of the bands), ``filter`` (which filter
+    code ran), ``seconds`` (wall time of the run) and ``checks()``, the checks by name."""
 
     n_runs: int
     alpha: float
+    filter: str
+    seconds: float
 
     def checks(self) -> dict: ...
 

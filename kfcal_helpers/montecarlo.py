@@ -1,0 +1,287 @@
+"""The Monte Carlo core shared by every course problem: seeds, chunks, threads, progress,
+cancellation and the memory/time estimate.
+
+A problem supplies an :class:`Experiment`: how to draw and filter one *chunk* of realizations
+into partial sums (or per-run arrays), how to add those up, and what a chunk costs.  The core
+(:func:`run`) does everything else, the same way for every problem:
+
+* **Seeds (one policy).**  The ``n_runs`` realizations are split into chunks of
+  ``experiment.chunk_size()`` (a function of the problem's settings only, never of the machine or
+  of ``workers``).  Chunk ``c`` draws from its own stream: for an int seed (or None, fresh
+  entropy) ``numpy.random.Generator(numpy.random.PCG64DXSM(numpy.random.SeedSequence(seed).spawn(n_chunks)[c]))``,
+  for a ``numpy.random.Generator`` ``seed.spawn(n_chunks)[c]`` (:func:`chunk_generators`).
+  PCG64DXSM is numpy's recommended successor of ``default_rng``'s PCG64 (it draws normals about
+  30 % faster).  :func:`chunk_generators` gives the same streams back, to redraw any realization.
+* **Workers (threads, never processes).**  Up to ``workers`` chunks run at once on a thread pool
+  (numpy releases the GIL in its array loops); the default is :func:`default_workers`.  Partial
+  results are added in chunk order, so the result is the same, bit for bit, for any number of
+  workers.  Threads exist on every operating system: nothing is forked or pickled.
+* **Memory and time.**  :func:`estimate` adds up what the experiment says it needs (the fixed part,
+  every chunk in flight, the statistics at the end) and refuses, with its estimate, a run whose
+  peak exceeds :data:`MEMORY_LIMIT` or whose one-thread time exceeds :data:`MAX_SECONDS`, before
+  any work starts.  Fewer chunks fly at once when more would not fit.
+* **Progress and cancellation.**  A progress bar over realizations (quiet under tests and CI,
+  :mod:`kfcal_helpers.progress`).  An exception in the calling thread while chunks run
+  (``KeyboardInterrupt`` from Ctrl-C, or whatever the command line raises on SIGTERM) cancels the
+  chunks not started and stops the running ones at their next :meth:`Chunk.tick`; the exception
+  then propagates.
+
+The results of every problem offer the interface :class:`kfcal_helpers.consistency.MonteCarloSummary`
+(``n_runs``, ``alpha``, ``filter``, ``seconds``, ``checks()``), and :mod:`kfcal_helpers.consistency`
+builds every band.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import threading
+import time
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from .progress import progress_bar
+from .validation import require_int, require_seed
+
+__all__ = ["MEMORY_LIMIT", "MAX_SECONDS", "Experiment", "Chunk", "Cancelled", "Estimate", "default_workers",
+           "chunk_sizes", "chunk_generators", "estimate", "run"]
+
+MEMORY_LIMIT = 500e6  #: bytes, the estimated peak memory (resident) a run may need
+MAX_SECONDS = 3600.0  #: s, the longest estimated one-thread run accepted
+
+
+@runtime_checkable
+class Experiment(Protocol):
+    """What a problem supplies to :func:`run` (all sizes in bytes, times in seconds).
+
+    chunk_size() -> int >= 1
+        Realizations drawn together; a function of the settings only.
+    fixed_bytes(n_runs) -> float
+        What the whole run keeps: the interpreter with its imports, the problem's
+        data-independent arrays, the running total (sums, or per-run arrays of all ``n_runs``).
+    chunk_bytes(size) -> float
+        One chunk of ``size`` realizations in flight: its draws, its filtering, its partial result.
+    final_bytes(n_runs) -> float
+        What :meth:`result` needs on top of ``fixed_bytes`` (the statistics at the end).
+    seconds(n_runs) -> float
+        The estimated time on one thread.
+    run_chunk(size, rng, chunk) -> partial
+        Draw ``size`` realizations from ``rng`` and filter them; call ``chunk.tick(n)`` as
+        realizations finish (optional: a chunk that never ticks moves the bar when it ends) and
+        return early (anything) when ``chunk.cancelled``.  Runs on a worker thread: read the
+        experiment, never write it.
+    empty() -> total
+        The running total before any chunk.
+    add(total, partial) -> total
+        ``partial`` added to ``total``; called in chunk order, in the calling thread.
+    result(total, n_runs, seconds) -> result
+        The problem's result (its ``checks()`` computed, if they are part of the timed work).
+    """
+
+    def chunk_size(self) -> int: ...
+
+    def fixed_bytes(self, n_runs: int) -> float: ...
+
+    def chunk_bytes(self, size: int) -> float: ...
+
+    def final_bytes(self, n_runs: int) -> float: ...
+
+    def seconds(self, n_runs: int) -> float: ...
+
+    def run_chunk(self, size: int, rng: np.random.Generator, chunk: "Chunk") -> Any: ...
+
+    def empty(self) -> Any: ...
+
+    def add(self, total: Any, partial: Any) -> Any: ...
+
+    def result(self, total: Any, n_runs: int, seconds: float) -> Any: ...
+
+
+class Cancelled(Exception):
+    """Raised inside a chunk by :meth:`Chunk.check` once the run is cancelled (the core catches it)."""
+
+
+class Chunk:
+    """What a running chunk sees of the core: ``tick(n)`` (n realizations done), ``cancelled``,
+    ``check()`` (raise :class:`Cancelled` when cancelled)."""
+
+    def __init__(self, cancel: threading.Event, lock: threading.Lock, counter: list):
+        self._cancel, self._lock, self._counter = cancel, lock, counter
+        self.ticked = 0
+
+    @property
+    def cancelled(self) -> bool:
+        return self._cancel.is_set()
+
+    def check(self) -> None:
+        if self._cancel.is_set():
+            raise Cancelled
+
+    def tick(self, n: int = 1) -> None:
+        self.ticked += n
+        with self._lock:
+            self._counter[0] += n
+        self.check()
+
+
+def default_workers() -> int:
+    """Threads a Monte Carlo uses by default: the environment variable ``KFCAL_WORKERS`` (an
+    integer >= 1) if set, else ``min(2, os.cpu_count())``."""
+    env = os.environ.get("KFCAL_WORKERS", "").strip()
+    if env:
+        try:
+            value = int(env)
+        except ValueError:
+            value = None
+        if value is None or value < 1:
+            raise ValueError(f"KFCAL_WORKERS must be an integer >= 1, got {env!r}")
+        return value
+    return max(1, min(2, os.cpu_count() or 1))
+
+
+def chunk_sizes(chunk: int, n_runs: int) -> list[int]:
+    """The sizes of the chunks of ``n_runs`` realizations in chunks of ``chunk``, in order."""
+    chunk = require_int("chunk", chunk, minimum=1)
+    n_runs = require_int("n_runs", n_runs, minimum=1)
+    return [chunk] * (n_runs // chunk) + ([n_runs % chunk] if n_runs % chunk else [])
+
+
+def chunk_generators(chunk: int, n_runs: int, seed) -> list[tuple[int, np.random.Generator]]:
+    """``(size, generator)`` of every chunk, in order: the seed policy of the module docstring
+    (``seed``: an int in [0, 2**63 - 1], None for fresh entropy, or a numpy Generator, whose
+    ``spawn`` is used)."""
+    sizes = chunk_sizes(chunk, n_runs)
+    if isinstance(seed, np.random.Generator):
+        gens = seed.spawn(len(sizes))
+    else:
+        seed = require_seed("seed", seed)
+        gens = [np.random.Generator(np.random.PCG64DXSM(s)) for s in np.random.SeedSequence(seed).spawn(len(sizes))]
+    return list(zip(sizes, gens))
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The estimate of a run: ``peak_bytes``, ``seconds`` (one thread), ``chunk`` (realizations per
+    chunk), ``n_chunks``, ``in_flight`` (chunks run at once) and ``fits`` (within both limits)."""
+
+    peak_bytes: float
+    seconds: float
+    chunk: int
+    n_chunks: int
+    in_flight: int
+
+    @property
+    def fits(self) -> bool:
+        return self.peak_bytes <= MEMORY_LIMIT and self.seconds <= MAX_SECONDS
+
+
+def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *, extra_bytes: float = 0.0,
+             runs_name: str = "n_runs", params_name: str = "params", what: str = "one realization") -> Estimate:
+    """The memory and time of ``run(experiment, n_runs, workers=workers)``, before it starts.
+
+    ``extra_bytes``: what the caller needs after the run while its result is alive (the command
+    line's figures, its JSON).  ValueError naming ``params_name`` when even one realization at a time
+    does not fit in :data:`MEMORY_LIMIT` (``what`` describes one realization in the message), naming
+    ``runs_name`` when ``n_runs`` realizations need too much memory or more than :data:`MAX_SECONDS`.
+    """
+    n_runs = require_int(runs_name, n_runs, minimum=1)
+    workers = default_workers() if workers is None else require_int("workers", workers, minimum=1)
+    chunk = require_int("chunk_size", experiment.chunk_size(), minimum=1)
+    n_chunks = -(-n_runs // chunk)  # without listing them: n_runs may be far too large to run
+    size = min(chunk, n_runs)
+    per_chunk = float(experiment.chunk_bytes(size))
+    fixed = float(experiment.fixed_bytes(n_runs))
+    fit = int((MEMORY_LIMIT - fixed) // per_chunk) if per_chunk > 0 else workers
+    in_flight = max(1, min(workers, n_chunks, fit))
+    final = float(experiment.final_bytes(n_runs)) + float(extra_bytes)
+    peak = fixed + max(in_flight * per_chunk, final)
+    seconds = float(experiment.seconds(n_runs))
+    if peak > MEMORY_LIMIT:
+        one = float(experiment.fixed_bytes(1)) + max(float(experiment.chunk_bytes(1)),
+                                                     float(experiment.final_bytes(1)) + float(extra_bytes))
+        name, advice = ((params_name, "use a smaller scenario") if one > MEMORY_LIMIT
+                        else (runs_name, "use fewer realizations"))
+        raise ValueError(f"{name}: {n_runs} realizations ({what}) need about {peak / 1e6:.0f} MB, more than "
+                         f"the {MEMORY_LIMIT / 1e6:.0f} MB allowed; {advice}")
+    if seconds > MAX_SECONDS:
+        raise ValueError(f"{runs_name}: {n_runs} realizations would take about {seconds / 3600:.3g} h, more "
+                         f"than the {MAX_SECONDS / 3600:g} h allowed; use fewer")
+    return Estimate(peak, seconds, chunk, n_chunks, in_flight)
+
+
+def run(experiment: Experiment, n_runs: int, seed=0, *, workers: int | None = None, progress: bool | None = False,
+        desc: str = "Monte Carlo", extra_bytes: float = 0.0, runs_name: str = "n_runs",
+        params_name: str = "params", what: str = "one realization"):
+    """Run ``n_runs`` realizations of ``experiment`` in seeded chunks on threads; return
+    ``experiment.result(total, n_runs, seconds)``.
+
+    seed : int in [0, 2**63 - 1], None (fresh entropy) or a numpy Generator (:func:`chunk_generators`)
+    workers : threads (default :func:`default_workers`); the result does not depend on it
+    progress : show a bar over realizations (None: unless CI or KFCAL_QUIET is set)
+    extra_bytes, runs_name, params_name, what : passed to :func:`estimate`, which runs first
+    """
+    n_runs = require_int(runs_name, n_runs, minimum=1)
+    if not isinstance(seed, np.random.Generator):
+        seed = require_seed("seed", seed)
+    plan = estimate(experiment, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,
+                    params_name=params_name, what=what)
+    start = time.perf_counter()
+    chunks = chunk_generators(plan.chunk, n_runs, seed)
+    cancel, lock, counter = threading.Event(), threading.Lock(), [0, 0]  # ticks by workers, ticks shown
+    bar = progress_bar(n_runs, desc, progress)
+    total = experiment.empty()
+
+    def show():
+        with lock:
+            new, counter[1] = counter[0] - counter[1], counter[0]
+        if new:
+            bar.update(new)
+
+    def one(size, rng):
+        chunk = Chunk(cancel, lock, counter)
+        try:
+            part = experiment.run_chunk(size, rng, chunk)
+        except Cancelled:
+            return None
+        rest = size - chunk.ticked  # a chunk that did not tick moves the bar when it ends
+        if rest:
+            with lock:
+                counter[0] += rest
+        return part
+
+    try:
+        if plan.in_flight == 1:
+            for size, rng in chunks:
+                total = experiment.add(total, one(size, rng))
+                show()
+        else:
+            pool = ThreadPoolExecutor(max_workers=plan.in_flight, thread_name_prefix="kfcal-mc")
+            try:
+                pending = deque()
+                queue = iter(chunks)
+                for size, rng in itertools.islice(queue, plan.in_flight):
+                    pending.append(pool.submit(one, size, rng))
+                while pending:
+                    future = pending.popleft()
+                    while True:
+                        try:
+                            part = future.result(timeout=0.1)
+                            break
+                        except FutureTimeout:
+                            show()
+                    total = experiment.add(total, part)
+                    show()
+                    for size, rng in itertools.islice(queue, 1):
+                        pending.append(pool.submit(one, size, rng))
+            finally:
+                cancel.set()  # after an interruption, running chunks stop at their next tick
+                pool.shutdown(wait=False, cancel_futures=True)
+    finally:
+        cancel.set()
+        bar.close()
+    return experiment.result(total, n_runs, time.perf_counter() - start)
