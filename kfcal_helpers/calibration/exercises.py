@@ -1409,11 +1409,12 @@ def _gps_test():
 
 _GPS_MEASUREMENT = Exercise(
     "03.4",
-    praise="those are the GPS fixes z = [p, v] + η on IMU samples 0, r, 2r, …, the last one included",
-    hint="z[l, i] = [p[l, i r], v[l, i r]] + eta[l, i]: the truth at the fix samples 0, r, 2r, … plus the noise",
+    praise="those are the GPS fixes z = [p, v] + η on every steps_per_fix-th IMU sample from 0, the last one included",
+    hint="z[l, i] = [p[l, j_i], v[l, j_i]] + eta[l, i] with j_i = i·steps_per_fix: the truth at the fix samples plus "
+         "the noise",
     hints={
-        "count": "the fixes are IMU samples 0, r, 2r, … up to and including the last sample (n_gps = (n_imu - 1)/r + 1): "
-                 "check that you pick as many samples as eta has fixes",
+        "count": "the fixes are the IMU samples 0, steps_per_fix, 2·steps_per_fix, … up to and including the last "
+                 "sample: pick as many samples as eta has fixes",
         "swapped": "give [position, velocity] in this order along the last axis: z[..., 0] is the position",
         "minus": "the GPS reports the truth PLUS its noise η",
         "no_noise": "the noise η is missing: the GPS never sees the exact truth",
@@ -1425,8 +1426,8 @@ _GPS_MEASUREMENT = Exercise(
 
 def check_gps_measurement(func) -> Feedback:
     """Exercise 03.4: ``func(p, v, eta, steps_per_fix) -> z``, the GPS fixes
-    ``z[l, i] = [p[l, i r], v[l, i r]] + eta[l, i]`` (m, m/s), shape (n, n_gps, 2), for the truth
-    ``p``, ``v`` (n, n_imu), the noise ``eta`` (n, n_gps, 2) and ``r = steps_per_fix``.
+    ``z[l, i] = [p[l, i s], v[l, i s]] + eta[l, i]`` (m, m/s), shape (n, n_gps, 2), for the truth
+    ``p``, ``v`` (n, n_imu), the noise ``eta`` (n, n_gps, 2) and ``s = steps_per_fix``.
 
     Called on 2 realizations of 13 samples with a fix on every 4th sample (4 fixes).
     """
