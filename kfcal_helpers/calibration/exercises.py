@@ -1263,3 +1263,198 @@ EXERCISES = {ex.id: ex for ex in (
     _FIRST_GAIN, _SECOND_GAIN, _MC_NIS_BOUNDS, _FISHER_BAND, _SIMULTANEOUS_NEES_BAND, _APPARENT_BIAS,
     _TRAPEZOID_VELOCITY, _MISMATCH_FAILURES, _FAILING_CHECKS_GPS_SIGMA, _PHI02_COUPLING_CHANGE, _OUTAGE_MASK,
     _OUTAGE_SIGMA, _BATCH_TWO_FIXES, _SMOOTHED_BIAS_SIGMA, _DEMO_FIRST_FIX_SIGMA, _DEMO_RATIO_BAND)}
+
+
+# ----------------------------------------------------------------------------------------
+# 02 and 03: the data written as functions (the student builds what simulate() builds)
+# ----------------------------------------------------------------------------------------
+#: test input of the dead-reckoning exercise: IMU output a_c (3 realizations x 7 samples, m/s²),
+#: the prior means p_init (m), v_init (m/s), dt (s).  3 != 7, so an integration along the wrong axis shows.
+_DEAD_RECKON_TEST = (np.array([[0.5, -1.0, 2.0, 0.0, 3.0, -2.0, 1.5],
+                               [1.0, 1.0, -0.5, 0.25, 0.0, 2.0, -1.0],
+                               [-2.0, 0.5, 0.5, 1.5, -1.0, 0.0, 4.0]]), 1.0, 2.0, 0.1)
+
+
+def _reckon_variant(a_c, p_init, v_init, dt, kind: str = "ok"):
+    """The dead reckoning of ``a_c`` (n, n_t) along time by a plain loop, right or with one known mistake."""
+    if kind == "axis":  # integrated across the realizations (axis 0) instead of along time
+        p, v = _reckon_variant(a_c.T, p_init, v_init, dt)
+        return p.T, v.T
+    n, n_t = a_c.shape
+    p, v = np.empty((n, n_t)), np.empty((n, n_t))
+    p[:, 0] = p_init
+    v[:, 0] = v_init
+    for j in range(n_t - 1):
+        aj = a_c[:, j + 1] if kind == "right" else a_c[:, j]
+        v[:, j + 1] = v[:, j] + aj * dt
+        vel = v[:, j + 1] if kind == "new_v" else v[:, j]
+        acc = {"no_acc": 0.0, "dt2": aj * dt**2}.get(kind, aj * dt**2 / 2)
+        p[:, j + 1] = p[:, j] + vel * dt + acc
+    return p, v
+
+
+_DEAD_RECKON = Exercise(
+    "02.4",
+    praise="your loop is the IMU dead reckoning: the same numbers as the notebook's cumulative sums",
+    hint="compare your loop with the recursion: v_c[:, j+1] = v_c[:, j] + a_c[:, j] Δt, "
+         "p_c[:, j+1] = p_c[:, j] + v_c[:, j] Δt + a_c[:, j] Δt²/2, from p_c[:, 0] = p̄0, v_c[:, 0] = v̄0",
+    hints={
+        "new_v": "the position step uses the velocity at t_j (before the update), not the new velocity v_c[:, j+1]",
+        "no_acc": "the position step is missing the acceleration term a_c[:, j]Δt²/2",
+        "dt2": "the acceleration term of the position step is a_c[:, j]Δt²/2, with the 1/2",
+        "right": "left Riemann: the step from t_j to t_{j+1} uses a_c[:, j], not a_c[:, j+1]",
+        "axis": "a_c has one row per realization and one column per sample: integrate along the columns "
+                "(axis 1, time), each row on its own",
+        "swapped": "return (p_c, v_c) in this order: position first",
+        "shape": "p_c and v_c have the shape of a_c: one row per realization, one column per sample, starting "
+                 "with p_c[:, 0] = p̄0 and v_c[:, 0] = v̄0",
+        "tuple": "return a tuple (p_c, v_c) of two arrays",
+    },
+)
+
+
+def check_dead_reckoning(func) -> Feedback:
+    """Exercise 02.4: ``func(a_c, p_init, v_init, dt) -> (p_c, v_c)``, the IMU dead reckoning of
+    ``a_c`` (n, n_imu) m/s² from the prior means ``p_init`` (m) and ``v_init`` (m/s), each (n, n_imu).
+
+    Called on a test input of 3 realizations of 7 samples, p_init = 1 m, v_init = 2 m/s, dt = 0.1 s;
+    compared with :func:`~kfcal_helpers.calibration.integrate_left` (rtol 1e-9).
+    """
+    ex = _DEAD_RECKON
+    a_c, p_init, v_init, dt = _DEAD_RECKON_TEST
+    out, fb = _call_once(ex, func, "dead_reckon(a_c, p_init, v_init, dt)", (a_c.copy(), p_init, v_init, dt))
+    if fb is not None:
+        return fb
+    pair = _pair(out)
+    if pair is None:
+        return ex.mistake("tuple")
+    p, v = pair
+    if p.shape != a_c.shape or v.shape != a_c.shape:
+        return ex.mistake("shape")
+    p_ok, v_ok = integrate_left(a_c, p_init, v_init, dt)
+    if _close(p, p_ok) and _close(v, v_ok):
+        return ex.feedback(True)
+    if _close(p, v_ok) and _close(v, p_ok):
+        return ex.mistake("swapped")
+    for kind in ("right", "new_v", "no_acc", "dt2", "axis"):
+        pw, vw = _reckon_variant(a_c, p_init, v_init, dt, kind)
+        if _close(p, pw) and _close(v, vw):
+            return ex.mistake(kind)
+    if _close(v, v_ok):
+        return ex.feedback(False, "v_c is right, p_c is not: " + ex.hint)
+    return ex.feedback(False)
+
+
+#: test input of the IMU-output exercise: a (5 samples, m/s²), b (3 realizations, m/s²), w (3 x 5, m/s²)
+_IMU_OUTPUT_TEST = (np.array([0.0, 1.0, 2.0, -1.5, 0.5]), np.array([0.1, -0.2, 0.05]),
+                    np.array([[0.01, -0.02, 0.03, 0.0, -0.01],
+                              [0.02, 0.01, -0.03, 0.015, 0.0],
+                              [-0.01, 0.0, 0.02, -0.02, 0.03]]))
+
+_IMU_OUTPUT = Exercise(
+    "02.5",
+    praise="that is the IMU output a_c = a + b + w: one constant bias per realization, new noise at every sample",
+    hint="a_c[l, j] = a[j] + b[l] + w[l, j]: the truth of sample j, the bias of realization l, the noise of both",
+    hints={
+        "bias_sign": "the IMU reports the truth PLUS its bias: check the sign of b",
+        "noise_sign": "the IMU reports the truth plus the noise w, not minus it",
+        "no_bias": "the bias b is missing: every sample of realization l carries the same b[l]",
+        "no_noise": "the white noise w is missing",
+        "broadcast": "b has one entry per realization (rows of w): give it a column axis, b[:, None], before "
+                     "adding it to the (n, n_imu) array",
+        "shape": "a_c has one row per realization and one column per sample: the shape of w",
+    },
+)
+
+
+def check_imu_output(func) -> Feedback:
+    """Exercise 02.5: ``func(a, b, w) -> a_c``, the IMU output ``a_c[l, j] = a[j] + b[l] + w[l, j]`` (m/s²),
+    shape (n, n_imu), for ``a`` (n_imu,), ``b`` (n,) and ``w`` (n, n_imu).
+
+    Called on 3 realizations of 5 samples (3 != 5, so a bias added along the wrong axis shows).
+    """
+    ex = _IMU_OUTPUT
+    a, b, w = _IMU_OUTPUT_TEST
+    out, fb = _call_once(ex, func, "imu_output(a, b, w)", (a.copy(), b.copy(), w.copy()))
+    if fb is not None:
+        if fb.answered and "broadcast" in fb.message:
+            return ex.mistake("broadcast")
+        return fb
+    got = as_array(out)
+    if got is None or isinstance(out, (str, bytes)):
+        return ex.mistake("shape")
+    if got.shape != w.shape:
+        return ex.mistake("broadcast" if got.shape == w.T.shape else "shape")
+    right = a + b[:, None] + w
+    if _close(got, right):
+        return ex.feedback(True)
+    variants = [("bias_sign", a - b[:, None] + w), ("noise_sign", a + b[:, None] - w),
+                ("no_bias", a + w), ("no_noise", np.broadcast_to(a + b[:, None], w.shape))]
+    for key, value in variants:
+        if _close(got, value):
+            return ex.mistake(key)
+    return ex.feedback(False)
+
+
+#: test input of the GPS-measurement exercise: truth p (m), v (m/s) of 2 realizations x 13 samples, fixes on
+#: every 4th sample (0, 4, 8, 12: 4 fixes), the noise eta (2 x 4 x 2) [m, m/s]
+def _gps_test():
+    t = np.arange(13) * 0.5
+    p = np.stack([10.0 + 3.0 * t + 0.1 * t**2, -4.0 + 2.5 * t - 0.05 * t**2])
+    v = np.stack([3.0 + 0.2 * t, 2.5 - 0.1 * t])
+    eta = np.array([[[0.3, -0.02], [-1.1, 0.05], [0.4, 0.01], [0.9, -0.03]],
+                    [[-0.6, 0.04], [0.2, -0.01], [1.3, 0.02], [-0.7, 0.06]]])
+    return p, v, eta, 4
+
+
+_GPS_MEASUREMENT = Exercise(
+    "03.4",
+    praise="those are the GPS fixes z = [p, v] + η on every steps_per_fix-th IMU sample from 0, the last one included",
+    hint="z[l, i] = [p[l, j_i], v[l, j_i]] + eta[l, i] with j_i = i·steps_per_fix: the truth at the fix samples plus "
+         "the noise",
+    hints={
+        "count": "the fixes are the IMU samples 0, steps_per_fix, 2·steps_per_fix, … up to and including the last "
+                 "sample: pick as many samples as eta has fixes",
+        "swapped": "give [position, velocity] in this order along the last axis: z[..., 0] is the position",
+        "minus": "the GPS reports the truth PLUS its noise η",
+        "no_noise": "the noise η is missing: the GPS never sees the exact truth",
+        "axis": "stack position and velocity along the LAST axis: z has shape (n, n_gps, 2), like eta",
+        "shape": "z has the shape of eta, (n, n_gps, 2): one row per realization, one per fix, [p, v] last",
+    },
+)
+
+
+def check_gps_measurement(func) -> Feedback:
+    """Exercise 03.4: ``func(p, v, eta, steps_per_fix) -> z``, the GPS fixes
+    ``z[l, i] = [p[l, i s], v[l, i s]] + eta[l, i]`` (m, m/s), shape (n, n_gps, 2), for the truth
+    ``p``, ``v`` (n, n_imu), the noise ``eta`` (n, n_gps, 2) and ``s = steps_per_fix``.
+
+    Called on 2 realizations of 13 samples with a fix on every 4th sample (4 fixes).
+    """
+    ex = _GPS_MEASUREMENT
+    p, v, eta, r = _gps_test()
+    out, fb = _call_once(ex, func, "gps_measurement(p, v, eta, steps_per_fix)", (p.copy(), v.copy(), eta.copy(), r))
+    if fb is not None:
+        if fb.answered and "broadcast" in fb.message:
+            return ex.mistake("count")
+        return fb
+    got = as_array(out)
+    if got is None or isinstance(out, (str, bytes)):
+        return ex.mistake("shape")
+    n, n_gps, _ = eta.shape
+    if got.shape == (2, n, n_gps):
+        return ex.mistake("axis")
+    if got.shape != eta.shape:
+        return ex.mistake("count" if got.ndim == 3 and got.shape[::2] == (n, 2) else "shape")
+    truth = np.stack([p[:, ::r], v[:, ::r]], axis=-1)
+    if _close(got, truth + eta):
+        return ex.feedback(True)
+    variants = [("swapped", truth[..., ::-1] + eta), ("minus", truth - eta), ("no_noise", truth)]
+    for key, value in variants:
+        if _close(got, value):
+            return ex.mistake(key)
+    return ex.feedback(False)
+
+
+__all__ += ["check_dead_reckoning", "check_imu_output", "check_gps_measurement"]
+EXERCISES.update({e.id: e for e in (_DEAD_RECKON, _IMU_OUTPUT, _GPS_MEASUREMENT)})
