@@ -20,7 +20,7 @@ from dataclasses import replace
 import kfcal_helpers.coop.exercises as exercises
 from kfcal_helpers.coop import CoopParams, simulate
 from kfcal_helpers.coop import exercises as coop
-from kfcal_helpers.exercises._core import GENERIC_HINT, Feedback
+from kfcal_helpers.exercises._core import GENERIC_HINT, ROUNDED_HINT, Feedback
 
 HINTS = {ex: e.hints for ex, e in coop.EXERCISES.items() if not ex.startswith("18.")}
 P = CoopParams()
@@ -464,10 +464,14 @@ def test_accepts_the_right_bounds(updates_15s, updates_every10):
 
 
 @pytest.mark.parametrize("exercise", ["10.1", "13.1", "13.2"])
-def test_bounds_rounded_to_three_decimals_pass(exercise, updates_15s, updates_every10):
+def test_bounds_rounded_are_told_to_pass_the_computed_value(exercise, updates_15s, updates_every10):
+    """One answer-format rule: the computed value, no rounding; a rounded copy is told so, at any precision."""
     right = {"10.1": right_10_1(), "13.1": avg_bounds(5, updates_15s, coop.LOG_ALPHA),
              "13.2": avg_bounds(5, updates_every10, 0.05)}[exercise]
-    assert CHECKS[exercise][0](np.round(right, 3)).correct
+    for decimals in (3, 4, 6):
+        fb = CHECKS[exercise][0](np.round(right, decimals))
+        assert not fb.correct and fb.message == ROUNDED_HINT, (decimals, str(fb))
+    assert CHECKS[exercise][0](right).correct
 
 
 def test_other_valid_forms_are_accepted():

@@ -330,16 +330,16 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
         if why.startswith("expected numbers"):
             why = f"expected numbers (an array of shape {e.shape}), got {type(answer).__name__}"
         return Feedback(exercise, False, why)
-    if a.size != e.size:
-        return Feedback(exercise, False, f"expected shape {e.shape}, got {a.shape}")
     if not np.all(np.isfinite(a)):
         return Feedback(exercise, False, NON_FINITE_HINT)
     if matches(a, e, rtol, atol):
         return Feedback(exercise, True, praise)
     rounded_right = is_rounding(a, e)
-    for value, why in wrong:
+    for value, why in wrong:  # a mistake may have another shape (one entry missing...)
         if matches(a, value, rtol, atol) and not (rounded_right and not matches(a, value, 1e-12, 0.0)):
             return Feedback(exercise, False, why)
+    if a.size != e.size:
+        return Feedback(exercise, False, f"expected shape {e.shape}, got {a.shape}")
     if rounded_right:
         return Feedback(exercise, False, ROUNDED_HINT)
     near = [(_distance(a.ravel(), np.asarray(v, dtype=float).ravel()), why) for v, why in wrong if is_rounding(a, v)]
