@@ -639,3 +639,21 @@ def test_parameters_other_than_the_exercise_defaults():
 def test_bad_parameters_raise_value_error(call, name):
     with pytest.raises(ValueError, match=name):
         call()
+
+
+def test_small_physical_errors_get_method_hints_and_only_roundings_are_told_so():
+    """08.1: closeness is per component in its own units, not relative to the largest entry (40 m): a 0.035 rad
+    heading error, a 3 cm position error or a sign slip is a method error, not a copied printout nor the sinc or
+    mean-heading mistake; the right value (or a mistake's) rounded to a few decimals is told what it is."""
+    right = right_08_1()
+    x = np.array(coop.STEP_X)
+    slips = [right + d for d in np.eye(6)[[2, 5]] * 0.035] + [right + d for d in np.eye(6)[[0, 3]] * 0.03]
+    slip = right.copy()
+    slip[1] = 2 * x[1] - right[1]  # the north displacement with the wrong sign
+    for answer in [*slips, slip]:
+        fb = exercises.check_step_map(answer)
+        assert not fb.correct and fb.message == GENERIC_HINT, (answer, str(fb))
+    for decimals in (2, 3, 5):
+        assert exercises.check_step_map(np.round(right, decimals)).message == ROUNDED_HINT
+    no_sinc = wrong_08_1()["no_sinc"]
+    assert exercises.check_step_map(np.round(no_sinc, 4)).message == HINTS["08.1"]["no_sinc"]

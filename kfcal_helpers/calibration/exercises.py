@@ -347,7 +347,8 @@ def check_imu_std_band(answer, *, sigma: float = 0.02, n: int = 50, alpha: float
              ("variance", sigma**2 * chi2_average_bounds(1, n - 1, alpha)),
              ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, one_sided=True))),
              ("no_divide", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, divide_by=1))),
-             ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * (n - 1))))]
+             ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * (n - 1)))),
+             ("normal", sigma * (1 + np.array([-1.96, 1.96]) / np.sqrt(2 * (n - 1))))]  # with the usual 1.96
     return _numeric(_IMU_STD_BAND, answer, right, wrong)
 
 
@@ -433,7 +434,8 @@ def check_gps_rms_band(answer, *, sigma: float = 0.04, n: int = 100, alpha: floa
     wrong = [("n_minus_1", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha))),
              ("variance", sigma**2 * chi2_average_bounds(1, n, alpha)),
              ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n, alpha, one_sided=True))),
-             ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * n)))]
+             ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * n))),
+             ("normal", sigma * (1 + np.array([-1.96, 1.96]) / np.sqrt(2 * n)))]  # with the usual 1.96
     return _numeric(_GPS_RMS_BAND, answer, right, wrong)
 
 
@@ -742,6 +744,8 @@ _FISHER_BAND = Exercise(
         "linear": "the band is symmetric in z = atanh ρ, not in ρ: transform, add ± z_q/√(N - 3), transform back",
         "z_space": "transform the band back to a correlation with tanh",
         "one_sided": "a two-sided 95 % band uses the 97.5 % normal quantile (1.96)",
+        "z_rounded": "right method, but with the normal quantile rounded: compute it (scipy.stats.norm.ppf), and "
+                     "pass the value you computed, with no rounding",
     },
 )
 
@@ -760,6 +764,8 @@ def check_fisher_band(answer, *, rho: float = 0.8, n_runs: int = 300, alpha: flo
     wrong = [("sqrt_n", np.tanh(np.arctanh(rho) + pm * z / np.sqrt(N))), ("linear", rho + pm * z / np.sqrt(N - 3)),
              ("z_space", np.arctanh(rho) + pm * z / np.sqrt(N - 3)),
              ("one_sided", np.tanh(np.arctanh(rho) + pm * stats.norm.ppf(1 - alpha) / np.sqrt(N - 3)))]
+    for digits in (2, 3):  # 1.96 or 1.960 typed for the quantile
+        wrong.append(("z_rounded", np.tanh(np.arctanh(rho) + pm * round(z, digits) / np.sqrt(N - 3))))
     return _numeric(_FISHER_BAND, answer, right, wrong)
 
 
