@@ -99,6 +99,10 @@ BAD_ANSWERS = {
     "fn nan": lambda *a, **k: float("nan"), "fn (10**400, 1e308)": lambda *a, **k: (10**400, np.full(7, 1e308)),
     "fn (complex, complex)": lambda *a, **k: (np.ones(3) * 1j, np.eye(3) * 1j), "fn abc": lambda *a, **k: "abc",
     "fn object": lambda *a, **k: object(),
+    "fn 1e308 pair (7,)": lambda *a, **k: (np.full(7, 1e308), np.full(7, -1e308)),
+    "fn 1e308 pair (3,), (3, 3)": lambda *a, **k: (np.full(3, 1e308), np.full((3, 3), -1e308)),
+    "fn 1e308 (8,)": lambda *a, **k: np.full(8, 1e308), "fn 1e308 (5, 1)": lambda *a, **k: np.full((5, 1), -1e308),
+    "fn complex pair (7,)": lambda *a, **k: (np.ones(7), np.ones(7) + 1j),
 }
 
 
@@ -114,6 +118,12 @@ def test_every_check_answers_any_answer_with_one_line_and_no_warning(module, nam
             text = str(fb)
             assert not fb.correct and "\n" not in text and fb.message, (name, label, text)
             assert text.startswith(f"✘ {fb.exercise} "), (name, label, text)
+        # huge, NaN and complex entries in every shape an exercise asks for (so the check's own arithmetic runs)
+        for shape in ((2,), (3,), (4,), (5,), (6,), (2, 2), (3, 2), (3, 3), (5, 1), (6, 6), (121,), (151,)):
+            for fill in (1e308, -1e308, np.nan, 1 + 2j):
+                for answer in (np.full(shape, fill), np.where(np.arange(np.prod(shape)).reshape(shape) % 2, fill, 1.0)):
+                    fb = check(answer)
+                    assert not fb.correct and "\n" not in str(fb) and fb.message, (name, shape, fill, str(fb))
 
 
 def test_non_numbers_get_their_own_hint():

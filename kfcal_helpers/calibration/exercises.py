@@ -9,9 +9,12 @@ computed the same way.  Each exercise is one :class:`~kfcal_helpers.exercises.Ex
 (id, praise, generic hint, the hint of each recognised mistake), defined right above its check;
 :data:`EXERCISES` lists them by id.
 
-A check never raises because of the answer: a placeholder (``None`` or ``...``) gives
-"not answered yet", a malformed answer (a string, a wrong shape, a function that raises)
-gives a hint.  Bad *settings* raise ``ValueError`` naming the setting.
+A check never raises or warns because of the answer: a placeholder (``None`` or ``...``) gives
+"not answered yet", a malformed answer (a string, a wrong shape, a complex number, an integer too
+large for a float, NaN, a function that raises) gives a one-line hint.  Bad *settings* raise
+``ValueError`` naming the setting.  One answer-format rule for every exercise
+(:data:`~kfcal_helpers.exercises.FORMAT_RULE`): pass the value you computed, with no rounding; the
+tolerances below are float-level, or, where stated, accept a documented approximation.
 
 Exercise ids are ``"NN.k"``: notebook NN, exercise k.  Worked solutions are in
 ``notebooks/solutions/NN_*.ipynb``.

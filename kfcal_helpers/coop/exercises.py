@@ -7,7 +7,9 @@ computed from the project's model (:mod:`kfcal_helpers.coop`) or from first prin
 the common wrong answers are computed by making the mistake on purpose.  Each exercise is one
 :class:`~kfcal_helpers.exercises._core.Exercise` record (id, praise, hint, hints by mistake, never
 the answer) right above its check.  The exercise's parameters are keyword-only arguments, with
-the values of the exercise text as defaults.
+the values of the exercise text as defaults.  One answer-format rule for every exercise
+(:data:`~kfcal_helpers.exercises.FORMAT_RULE`): pass the value you computed, with no rounding (the
+tolerances are float-level); a rounded copy is told so.  No answer makes a check raise or warn.
 
 A function answer is called through :func:`~kfcal_helpers.exercises._core.call_student` on fixed
 test inputs (copies, so it may modify them); an exception it raises becomes a hint naming the
@@ -720,8 +722,9 @@ def check_merwe_weights(answer, *, n: int = MERWE["n"], alpha: float = MERWE["al
     E = MERWE_WEIGHTS if expected[1] >= 0 else replace(MERWE_WEIGHTS, praise=NEGATIVE_WM0_PRAISE)
     fb = E.judge(answer, expected, wrong, rtol=_NUM_RTOL, atol=_NUM_ATOL)
     flat = _finite_of_size(answer, 4)
-    if not fb.correct and fb.answered and fb.message == GENERIC_HINT and flat is not None \
-            and abs(flat[1] + 2 * n * flat[3] - 1.0) > 1e-3:
+    with np.errstate(all="ignore"):  # 1e308 entries: an overflowing sum is simply not 1
+        off_sum = flat is not None and not abs(flat[1] + 2 * n * flat[3] - 1.0) <= 1e-3
+    if not fb.correct and fb.answered and fb.message == GENERIC_HINT and off_sum:
         return E.mistake("sum")
     return fb
 
