@@ -211,8 +211,8 @@ def _euler_variant(a, p0, v0, dt, kind: str):
 _EULER_TRUTH = Exercise(
     "01.3",
     praise="your recursion is the Euler truth (and the IMU mechanization) of the notebook",
-    hint="compare your recursion with the notebook's: v(t_{j+1}) = v(t_j) + a(t_j)Δt, p(t_{j+1}) = p(t_j) + "
-         "v(t_j)Δt + a(t_j)Δt²/2",
+    hint="compare your recursion with the notebook's Euler truth, term by term: which samples of a and v does each "
+         "step use, and with which powers of Δt?",
     hints={
         "new_v": "the position step uses the velocity at t_j (before the update), not v(t_{j+1})",
         "no_acc": "the position step is missing the acceleration term a(t_j)Δt²/2",
@@ -263,7 +263,8 @@ def check_euler_truth(func) -> Feedback:
 _IMU_DRIFT = Exercise(
     "02.1",
     praise="the bias drift is linear in velocity and quadratic in position",
-    hint="δv(t) = δv0 - b t and δp(t) = δp0 + δv0 t - b t²/2 (bias only, no noise): check each term",
+    hint="integrate the bias once for δv and twice for δp, starting from the initial errors (bias only, no noise), "
+         "and check each term and its sign",
     hints={
         "sign": "check the sign of the bias terms: a positive bias makes the IMU over-read, so p_c and v_c run "
                 "ahead of the truth",
@@ -388,7 +389,8 @@ def check_gps_fix_indices(answer, *, gps_rate: float = 4.0) -> Feedback:
 _GPS_DZ = Exercise(
     "03.2",
     praise="that is what the filter sees: GPS minus dead reckoning",
-    hint="δz = z - [p_c, v_c]: compare term by term",
+    hint="the filter's measurement compares the GPS fix with what the IMU alone says: check which quantities it "
+         "uses and in which order",
     hints={
         "sign": "δz is the GPS minus the IMU dead reckoning, not the other way round",
         "swapped": "give [δz_p, δz_v] in this order: position first",
@@ -514,7 +516,7 @@ def check_gamma_100hz(answer, *, imu_rate: float = 100.0) -> Feedback:
 _PHI_FIX_TO_FIX = Exercise(
     "04.3",
     praise="the fix-to-fix transition: a constant bias over s seconds shifts δv by -b s and δp by -b s²/2",
-    hint="Φ^k = [[1, kΔt, -(kΔt)²/2], [0, 1, -kΔt], [0, 0, 1]]; check k and Δt",
+    hint="multiply Φ by itself k times (or think of what a constant bias does over kΔt seconds); check k and Δt",
     hints={
         "linear": "Φ^k is not I + k(Φ - I): the bias acts on δv, which then acts on δp, so the corner grows like "
                   "(kΔt)²/2",
@@ -585,7 +587,7 @@ def _predict(x, P, Phi, Q, n, transposed=False, q=True):
 _PREDICT_ONLY = Exercise(
     "05.1",
     praise="your predict-only loop matches filterpy's predict()",
-    hint="repeat n times: x ← Φ x, P ← Φ P Φᵀ + Q",
+    hint="each of the n steps is one filterpy predict(): compare what it does to x and to P with your loop",
     hints={
         "no_q": "P also grows by the process noise Q at every step",
         "transposed": "the covariance step is Φ P Φᵀ (Φ on the left), not Φᵀ P Φ",
@@ -741,7 +743,7 @@ def check_mc_nis_bounds(answer, *, n_runs: int = 50, alpha: float = 0.05) -> Fee
 _FISHER_BAND = Exercise(
     "06.2",
     praise="Fisher's z makes the band of a correlation symmetric and of known width",
-    hint="tanh(atanh ρ ± z_{0.975}/√(N - 3))",
+    hint="build the band where it is symmetric (Fisher's z of ρ, with its standard error), then transform back",
     hints={
         "sqrt_n": "the standard error of Fisher's z is 1/√(N - 3), not 1/√N",
         "linear": "the band is symmetric in z = atanh ρ, not in ρ: transform, add ± z_q/√(N - 3), transform back",
@@ -849,7 +851,7 @@ _TRAPEZOID_TEST = (np.array([0.3, 1.2, -0.7, 2.5, 0.0, -1.1, 0.8, 1.9]), 100.0, 
 _TRAPEZOID_VELOCITY = Exercise(
     "07.2",
     praise="the trapezoidal mechanization",
-    hint="v[0] = v0 and v[j+1] = v[j] + (Δt/2)(a_c[j] + a_c[j+1])",
+    hint="each step adds the area under a_c between two samples: the trapezoid uses both end samples",
     hints={
         "left": "that is the left Riemann sum again: the trapezoid averages a_c(t_j) and a_c(t_{j+1})",
         "right": "that is the right Riemann sum: the trapezoid averages a_c(t_j) and a_c(t_{j+1})",
@@ -943,7 +945,7 @@ def check_mismatch_failures(answer, *, w_factor: float = 0.01, n_runs: int = 100
 _OUTAGE_MASK = Exercise(
     "15.1",
     praise="a half-open window: the fix at t_s is missing, the one at t_e is back",
-    hint="a fix at time t is missing when t_s <= t < t_e for one of the windows",
+    hint="one entry per GPS fix: check which end of each window is inside it, and what True means",
     hints={
         "closed": "the window is half-open, t_s <= t < t_e: the fix at t_e is the first one back",
         "open_start": "the window is half-open, t_s <= t < t_e: the fix at t_s is already missing",
