@@ -138,3 +138,9 @@ def test_non_numbers_get_their_own_hint():
     for out, words in ((10**400, "too large"), (1 + 2j, "complex"), ((np.ones(2), np.nan), "NaN")):
         outs, fb = call_student("99.5", lambda x, out=out: out, [(1.0,)])
         assert outs is None and words in fb.message, str(fb)
+
+
+def test_a_placeholder_left_in_one_entry_is_named():
+    for answer in ([1.0, None], [..., 2.0]):
+        fb = EX.judge(answer, [1.0, 2.0])
+        assert not fb.correct and fb.answered and "placeholder" in fb.message, str(fb)

@@ -205,6 +205,8 @@ def _to_float(answer):
         if np.iscomplexobj(raw) or (raw.dtype == object and any(isinstance(v, complex) for v in raw.flat)):
             return None, ("your answer is complex: the answer is real; keep the real part only where the imaginary "
                           "part is zero by construction")
+        if raw.dtype == object and any(v is None or v is Ellipsis for v in raw.flat):
+            return None, "your answer still holds None or ...: replace every placeholder with a number"
         if raw.dtype.kind in "USVMm" or (raw.dtype == object and any(isinstance(v, (str, bytes)) for v in raw.flat)):
             return None, f"expected numbers, got {type(answer).__name__}"
         try:
