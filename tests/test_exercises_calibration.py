@@ -580,3 +580,16 @@ def test_gamma_of_either_sign_is_right():
     flipped = np.array([dt**2 / 2, dt, 0.0])
     assert ex.check_gamma_100hz(flipped, imu_rate=300.0).correct
     assert ex.check_gamma_100hz([float(f"{x:.4g}") for x in flipped], imu_rate=300.0).message == ROUNDED_HINT
+
+
+@pytest.mark.parametrize("exercise", NUMERIC)
+def test_the_right_value_as_complex_is_not_right(exercise):
+    """A complex answer never loses its imaginary part silently (no ComplexWarning, no praise)."""
+    import warnings
+
+    check, right, _, _ = CASES[exercise]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for answer in (np.asarray(right, dtype=float) + 1e-3j, np.asarray(right, dtype=complex)):
+            fb = check(answer)
+            assert not fb.correct and "complex" in fb.message, str(fb)

@@ -657,3 +657,20 @@ def test_small_physical_errors_get_method_hints_and_only_roundings_are_told_so()
         assert exercises.check_step_map(np.round(right, decimals)).message == ROUNDED_HINT
     no_sinc = wrong_08_1()["no_sinc"]
     assert exercises.check_step_map(np.round(no_sinc, 4)).message == HINTS["08.1"]["no_sinc"]
+
+
+@pytest.mark.parametrize("exercise", sorted(RIGHT))
+def test_the_right_value_as_complex_is_not_right(exercise):
+    """A complex answer (or a function returning one) never loses its imaginary part silently."""
+    import warnings
+
+    check, is_fn = CHECKS[exercise]
+    right = RIGHT[exercise]()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        if is_fn:
+            answer = lambda *a: np.asarray(right(*a), dtype=complex)  # noqa: E731
+        else:
+            answer = np.asarray(right, dtype=float) + 1e-3j
+        fb = check(answer)
+        assert not fb.correct and "complex" in fb.message, str(fb)
