@@ -101,7 +101,7 @@ def cases():
     out["01.1"] = (ex.check_euler_velocity_gap, v_an[-1] - v_e[-1],
                    [("sign", v_e[-1] - v_an[-1]), ("no_half", DT * A * np.sin(8.0)),
                     ("omega", DT / 2 * A * np.sin(2.0)), ("hertz", DT / 2 * A * np.sin(2 * np.pi * 8.0)),
-                    ("position", DT / 2 * A / 0.8 * (1 - np.cos(8.0)))], [approx])
+                    ("position", DT / 2 * A / 0.8 * (1 - np.cos(8.0))), ("bound", DT / 2 * A)], [approx])
     # 01.2 --------------------------------------------------------------------------------
     p_an, v_an, p_e, v_e = truths(0.8, 30.0)
     out["01.2"] = (ex.check_euler_position_gap_max, np.max(np.abs(p_an - p_e)),
@@ -188,7 +188,7 @@ def cases():
     out["05.3"] = (ex.check_second_gain, K,
                    [("one_short", gain(coast(P_first, 39))), ("one_long", gain(coast(P_first, 41))),
                     ("no_q", gain(coast(P_first, 40, q=False))), ("no_first_update", gain(coast(m.M0, 40))),
-                    ("once_per_fix", gain(coast(P_first, 1))),
+                    ("once_per_fix", gain(coast(P_first, 1))), ("first_gain", K0),
                     ("fix_phi_one_q", gain(coast(P_first, 40, q=False) + noise_sum_closed_form(1)))], [])
     # 06.1 --------------------------------------------------------------------------------
     out["06.1"] = (ex.check_mc_nis_bounds, two_sided(100, 50),

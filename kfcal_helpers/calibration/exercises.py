@@ -134,6 +134,8 @@ _EULER_VELOCITY_GAP = Exercise(
         "omega": "use the exercise's ω = 0.8 rad/s, not the notebook's default 0.2 rad/s",
         "hertz": "ω is an angular frequency in rad/s: a(t) = A sin(ωt), with no 2π",
         "position": "that is the position formula; the velocity difference involves the acceleration a(t)",
+        "bound": "that is the largest velocity difference over the run, (Δt/2)A; the exercise asks for its value "
+                 "at t = 10 s",
     },
 )
 
@@ -152,7 +154,8 @@ def check_euler_velocity_gap(answer, *, omega: float = 0.8, t: float = 10.0) -> 
     dt, A = p.dt, p.A
     approx = lambda w: dt / 2 * A * np.sin(w * t)  # noqa: E731  (a(0) = 0)
     wrong = [("sign", -_velocity_gap(p, t)), ("no_half", 2 * approx(omega)), ("omega", approx(0.2)),
-             ("hertz", approx(2 * np.pi * omega)), ("position", dt / 2 * A / omega * (1 - np.cos(omega * t)))]
+             ("hertz", approx(2 * np.pi * omega)), ("position", dt / 2 * A / omega * (1 - np.cos(omega * t))),
+             ("bound", dt / 2 * A)]
     return _numeric(_EULER_VELOCITY_GAP, answer, _velocity_gap(p, t), wrong, rtol=5e-3)
 
 
@@ -644,8 +647,9 @@ _FIRST_GAIN = Exercise(
     hints={
         "default_v": "use the exercise's GPS noise V = diag(4, 0.01), not the notebook's",
         "swapped": "the variances are swapped: V[0,0] is the position variance (m²), V[1,1] the velocity one ((m/s)²)",
-        "no_p_in_s": "the innovation covariance is S = H P Hᵀ + V: the prior uncertainty is in S too",
-        "no_p": "K = P Hᵀ S⁻¹: the prior covariance P multiplies Hᵀ S⁻¹",
+        "no_p_in_s": "the innovation covariance is S = H M Hᵀ + V (M the a priori covariance): the prior "
+                     "uncertainty is in S too",
+        "no_p": "K = M Hᵀ S⁻¹: the a priori covariance M multiplies Hᵀ S⁻¹",
         "shape": "K maps a measurement (2) to a state correction (3): shape (3, 2)",
     },
 )
@@ -681,6 +685,8 @@ _SECOND_GAIN = Exercise(
         "one_long": "one prediction too many: 40 IMU steps separate two fixes at 200 Hz / 5 Hz",
         "no_q": "P grows by the process noise Q at every predict step",
         "no_first_update": "predict from the a posteriori P of the first fix (after its update), not from M0",
+        "first_gain": "that is the gain at the first fix (t = 0, exercise 05.2); the exercise asks for the one at the "
+                      "second fix, after the first update and 0.2 s of prediction",
     },
 )
 
@@ -701,7 +707,7 @@ def check_second_gain(answer) -> Feedback:
 
     wrong = [("one_short", gain_after(P0, r - 1)), ("one_long", gain_after(P0, r + 1)),
              ("no_q", gain_after(P0, r, q=False)), ("no_first_update", gain_after(m.M0, r)),
-             ("once_per_fix", gain_after(P0, 1))]
+             ("once_per_fix", gain_after(P0, 1)), ("first_gain", K0)]
     F = phi_power(params, r)
     wrong.append(("fix_phi_one_q", _gain(F @ P0 @ F.T + m.Q, H, V)))
     return _numeric(_SECOND_GAIN, answer, right, wrong)
