@@ -126,8 +126,8 @@ class MonteCarloResult:
         has = np.isfinite(self.nis).all(axis=0)
         n_entries = self.errors[0].size + self.nees.shape[1] + int(has.sum())
         a_sim = self.alpha / n_entries
-        mean = self.errors.mean(axis=0).ravel()
-        sem = self.errors.std(axis=0, ddof=1).ravel() / np.sqrt(n)
+        mean, std = _mean_std(self.errors)
+        mean, sem = mean.ravel(), std.ravel() / np.sqrt(n)
         zero = np.zeros_like(mean)
         t_pt, t_sim = stats.t.ppf(1 - self.alpha / 2, n - 1), stats.t.ppf(1 - a_sim / 2, n - 1)
         out = {"mean_error": Check("mean_error", "run mean of the error, per step and state", mean, zero,
@@ -156,15 +156,29 @@ class MonteCarloResult:
         }
 
 
+_BLOCK = 256  #: runs per block of the ensemble standard deviation in checks()
+
+
+def _mean_std(errors):
+    """Mean and ensemble standard deviation (ddof 1) over the runs of ``errors`` (N, K, 6), in blocks of
+    runs: the two-pass formula of ``numpy.std`` without an (N, K, 6) temporary."""
+    mean = errors.mean(axis=0)
+    ss = np.zeros_like(mean)
+    for i in range(0, errors.shape[0], _BLOCK):
+        d = errors[i:i + _BLOCK] - mean
+        ss += np.einsum("nkj,nkj->kj", d, d)
+    return mean, np.sqrt(ss / (errors.shape[0] - 1))
+
+
 # Memory of a test, bytes (measured with tracemalloc and the peak RSS of a child process,
 # tests/test_coop_memory.py): the interpreter with numpy, scipy, filterpy and this package; the
 # float64 values kept per run and step (NEES, NIS, 6 errors, 6 two-sigma bounds); those of one chunk
 # in flight per run and step (its truths, measurements, the draws' temporaries and its partial
-# result); the statistics at the end (``checks()`` takes the ensemble deviation of the errors).
+# result); at the end, the memory of the last chunks, which the allocator may keep, and the blocks
+# of ``checks()``.
 _BASE_BYTES = 150e6
 _KEPT_PER_STEP = 14 * 8
 _CHUNK_PER_STEP = 48 * 8
-_FINAL_PER_STEP = 8 * 8
 #: one-thread seconds per run of 1001 steps (2-core machine, 2026), and per chunk (the step loop)
 _SECONDS_PER_RUN = {"lkf": 1.5e-3, "ekf": 4.0e-3, "ukf": 1.0e-2}
 _SECONDS_PER_CHUNK = {"lkf": 0.05, "ekf": 0.15, "ukf": 0.25}
@@ -176,14 +190,17 @@ class TruthModelExperiment:
     A chunk of ``size`` runs draws its truths and measurements with
     ``simulate(params, size, rng, every=every)`` from the chunk's generator and filters them with
     :func:`~kfcal_helpers.coop.batch.run_batch`; the per-run NEES (N, K), NIS (N, K), errors (N, K, 6)
-    and two-sigma bounds (N, K, 6) are written into the arrays of the total, in chunk order.
+    and two-sigma bounds (N, K, 6) are written into the arrays of the total (allocated once for the
+    ``n_runs`` runs), in chunk order.
 
     setup : FilterSetup -- the filter and its settings (its ``params`` are the truth model's)
+    n_runs : int >= 1 -- the runs the total holds (pass the same to :func:`kfcal_helpers.montecarlo.run`)
     every : int >= 1 -- keep the measurements of every ``every``-th step only; alpha : of the result
     """
 
-    def __init__(self, setup: FilterSetup, every: int = 1, alpha: float = 0.05):
+    def __init__(self, setup: FilterSetup, n_runs: int, every: int = 1, alpha: float = 0.05):
         self.setup = require_instance("setup", setup, FilterSetup)
+        self.n_runs = require_int("n_runs", n_runs, minimum=1)
         self.every = require_int("every", every, minimum=1)
         self.alpha = require_probability("alpha", alpha)
         self.params = setup.params
@@ -198,7 +215,7 @@ class TruthModelExperiment:
         return _CHUNK_PER_STEP * self.params.n_samples * size
 
     def final_bytes(self, n_runs: int) -> float:
-        return _FINAL_PER_STEP * self.params.n_samples * n_runs
+        return 2 * self.chunk_bytes(min(n_runs, CHUNK_SIZE)) + 2 * 6 * 8 * self.params.n_samples * min(n_runs, _BLOCK)
 
     def seconds(self, n_runs: int) -> float:
         f = self.setup.filter
@@ -216,38 +233,30 @@ class TruthModelExperiment:
         return b.nees, b.nis, b.errors, b.sigma2
 
     def empty(self):
-        return None
+        n, K = self.n_runs, self.params.n_samples
+        return {"n": 0, "nees": np.empty((n, K)), "nis": np.empty((n, K)), "errors": np.empty((n, K, N_STATES)),
+                "sigma2": np.empty((n, K, N_STATES))}
 
     def add(self, total, partial):
-        if total is None:
-            total = {"n": 0, "parts": []}
-        total["parts"].append(partial)
-        total["n"] += partial[0].shape[0]
+        i, size = total["n"], partial[0].shape[0]
+        for name, values in zip(("nees", "nis", "errors", "sigma2"), partial):
+            total[name][i:i + size] = values
+        total["n"] = i + size
         return total
 
     def result(self, total, n_runs, seconds) -> MonteCarloResult:
-        assert total["n"] == n_runs
-        parts = total["parts"]
-        arrays = []
-        for j in range(4):  # one array at a time, each chunk's part freed as it is copied
-            first = parts[0][j]
-            out = np.empty((n_runs,) + first.shape[1:])
-            start = 0
-            for i, part in enumerate(parts):
-                a = part[j]
-                out[start:start + a.shape[0]] = a
-                start += a.shape[0]
-                parts[i] = part[:j] + (None,) + part[j + 1:]
-            arrays.append(out)
-        nees, nis, err, sig = arrays
+        if total["n"] != n_runs or n_runs != self.n_runs:
+            raise ValueError(f"n_runs: the experiment was made for {self.n_runs} runs, {total['n']} ran, "
+                             f"{n_runs} asked")
         s = self.setup
-        return MonteCarloResult(s.filter, n_runs, self.alpha, self.every, self.params.t, nees, nis, err, sig,
+        return MonteCarloResult(s.filter, n_runs, self.alpha, self.every, self.params.t, total["nees"],
+                                total["nis"], total["errors"], total["sigma2"],
                                 chi2_bounds(N_STATES, n_runs, self.alpha),
                                 chi2_bounds(s.measurement.dim, n_runs, self.alpha), s.measurement.rows, seconds)
 
 
-def _experiment(params, filter, alpha, every, settings) -> TruthModelExperiment:
-    return TruthModelExperiment(FilterSetup.build(filter, params, **settings), every, alpha)
+def _experiment(params, n_runs, filter, alpha, every, settings) -> TruthModelExperiment:
+    return TruthModelExperiment(FilterSetup.build(filter, params, **settings), n_runs, every, alpha)
 
 
 def estimate_truth_model_test(params: CoopParams | None = None, n_runs: int = 50, *, filter: str = "ekf",
@@ -256,7 +265,8 @@ def estimate_truth_model_test(params: CoopParams | None = None, n_runs: int = 50
     """The memory and time estimate of :func:`truth_model_test` with these arguments, before it runs
     (:func:`kfcal_helpers.montecarlo.estimate`): ValueError naming ``runs_name`` when the test would
     need more than 500 MB or more than an hour."""
-    exp = _experiment(params, filter, 0.05, every, settings)
+    n_runs = require_int(runs_name, n_runs, minimum=1)
+    exp = _experiment(params, n_runs, filter, 0.05, every, settings)
     return core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,
                          what=f"{exp.params.n_samples} steps of the {exp.setup.filter.upper()}")
 
@@ -290,7 +300,7 @@ def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0,
     """
     n_runs = require_int("n_runs", n_runs, minimum=1)
     alpha = require_probability("alpha", alpha)
-    exp = _experiment(params, filter, alpha, every, settings)
+    exp = _experiment(params, n_runs, filter, alpha, every, settings)
     desc = desc or f"{exp.setup.filter.upper()} truth-model test"
     return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=desc,
                     what=f"{exp.params.n_samples} steps of the {exp.setup.filter.upper()}")
