@@ -98,10 +98,9 @@ class _Store:
         self.x = np.empty((n, K, N_STATES)) if keep else None
         self.P = np.empty((n, K, N_STATES, N_STATES)) if keep else None
 
-    def innovation(self, k, y, S):
-        """NIS of the innovations ``y`` (N, m) with covariances ``S`` (N, m, m) or (m, m)."""
-        S = np.broadcast_to(S, y.shape[:1] + S.shape[-2:])
-        self.nis[:, k] = np.einsum("ni,ni->n", y, np.linalg.solve(S, y[..., None])[..., 0])
+    def innovation(self, k, y, SI):
+        """NIS of the innovations ``y`` (N, m) with inverse covariances ``SI`` (N, m, m) or (m, m)."""
+        self.nis[:, k] = (y * (SI @ y[..., None])[..., 0]).sum(axis=-1)
 
     def posterior(self, k, x, P):
         """Keep the posterior ``x`` (N, 6) and ``P`` (N, 6, 6) or (6, 6) at step k."""
@@ -110,7 +109,7 @@ class _Store:
         if self.truth is not None:
             err = STATE.residual(self.truth[:, k], x)
             self.errors[:, k] = err
-            self.nees[:, k] = np.einsum("ni,ni->n", err, np.linalg.solve(P, err[..., None])[..., 0])
+            self.nees[:, k] = (err * np.linalg.solve(P, err[..., None])[..., 0]).sum(axis=-1)
         if self.x is not None:
             self.x[:, k], self.P[:, k] = x, P
 
@@ -152,7 +151,8 @@ def run_lkf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
             Hk = H[k]
             PHT = P @ Hk.T
             S = Hk @ PHT + R
-            gain = PHT @ np.linalg.inv(S)
+            SI = np.linalg.inv(S)
+            gain = PHT @ SI
             dz = dx @ Hk.T
             zk = model.wrap(ynom[k] + dz) if s.subtract_nominal else dz
             innov = model.residual(y[:, k, rows], zk)
@@ -160,7 +160,7 @@ def run_lkf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
             dx = dx + nu @ gain.T
             I_KH = eye - gain @ Hk
             P = I_KH @ P @ I_KH.T + gain @ R @ gain.T
-            out.innovation(k, nu, S)
+            out.innovation(k, nu, SI)
         out.posterior(k, STATE.wrap(xnom[k] + dx), P)
     return out.result(s, K)
 
@@ -191,14 +191,15 @@ def run_ekf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
             H = model.jacobian(x)
             PHT = P @ _mT(H)
             S = H @ PHT + R
-            gain = PHT @ np.linalg.inv(S)
+            SI = np.linalg.inv(S)
+            gain = PHT @ SI
             z = y[:, k, rows]
             nu = model.residual(z, model.h(x)) if s.wrap_innovations else z - model.h(x)
             x = x + (gain @ nu[..., None])[..., 0]
             I_KH = eye - gain @ H
             P = I_KH @ P @ _mT(I_KH) + gain @ R @ _mT(gain)
             x = STATE.wrap(x)
-            out.innovation(k, nu, S)
+            out.innovation(k, nu, SI)
         out.posterior(k, x, P)
     return out.result(s, K)
 
@@ -236,7 +237,7 @@ def _ut(points, mean, Wm, Wc, residual):
     """Mean (N, d) and weighted residual covariance (N, d, d) of ``points`` (N, 13, d)."""
     m = mean(points, Wm)
     r = residual(points, m[:, None, :])
-    return m, r, np.einsum("k,nki,nkj->nij", Wc, r, r)
+    return m, r, _mT(r * Wc[:, None]) @ r
 
 
 def run_ukf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = False) -> BatchResult:
@@ -271,13 +272,14 @@ def run_ukf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
             zp, dz, S = _ut(sigmas_h, model.mean, Wm, Wc, model.residual)
             S = S + R
             dxs = STATE.residual(sigmas_f, x[:, None, :])
-            Pxz = np.einsum("k,nki,nkj->nij", Wc, dxs, dz)
-            gain = Pxz @ np.linalg.inv(S)
+            Pxz = _mT(dxs * Wc[:, None]) @ dz
+            SI = np.linalg.inv(S)
+            gain = Pxz @ SI
             nu = model.residual(y[:, k, rows], zp)
             x = STATE.add(x, (gain @ nu[..., None])[..., 0])
             P = P - gain @ S @ _mT(gain)
             P = 0.5 * (P + _mT(P))
-            out.innovation(k, nu, S)
+            out.innovation(k, nu, SI)
         out.posterior(k, x, P)
     return out.result(s, K)
 
