@@ -239,6 +239,8 @@ class TruthModelExperiment:
 
     def add(self, total, partial):
         i, size = total["n"], partial[0].shape[0]
+        if i + size > self.n_runs:
+            raise ValueError(f"n_runs: the experiment was made for {self.n_runs} runs, more ran")
         for name, values in zip(("nees", "nis", "errors", "sigma2"), partial):
             total[name][i:i + size] = values
         total["n"] = i + size
