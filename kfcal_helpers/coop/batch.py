@@ -98,9 +98,9 @@ class _Store:
         self.x = np.empty((n, K, N_STATES)) if keep else None
         self.P = np.empty((n, K, N_STATES, N_STATES)) if keep else None
 
-    def innovation(self, k, y, SI):
-        """NIS of the innovations ``y`` (N, m) with inverse covariances ``SI`` (N, m, m) or (m, m)."""
-        self.nis[:, k] = (y * (SI @ y[..., None])[..., 0]).sum(axis=-1)
+    def innovation(self, k, y, SIy):
+        """NIS of the innovations ``y`` (N, m), given ``S^-1 y`` (N, m)."""
+        self.nis[:, k] = (y * SIy).sum(axis=-1)
 
     def posterior(self, k, x, P):
         """Keep the posterior ``x`` (N, 6) and ``P`` (N, 6, 6) or (6, 6) at step k."""
@@ -120,6 +120,14 @@ class _Store:
 
 def _mT(a):
     return np.swapaxes(a, -1, -2)
+
+
+def _gain(S, cross, nu):
+    """Kalman gains ``K = cross S^-1`` (N, 6, m) and ``S^-1 nu`` (N, m) from one solve with S (N, m, m):
+    ``cross`` (N, 6, m) is ``P H^T`` (EKF) or ``Pxz`` (UKF), ``nu`` (N, m) the innovations.  (filterpy
+    multiplies by ``inv(S)``: the same numbers to rounding, at half the cost for stacks of small S.)"""
+    X = np.linalg.solve(S, np.concatenate([_mT(cross), nu[..., None]], axis=-1))
+    return _mT(X[..., :-1]), X[..., -1]
 
 
 # ---------------------------------------------------------------------------
@@ -160,7 +168,7 @@ def run_lkf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
             dx = dx + nu @ gain.T
             I_KH = eye - gain @ Hk
             P = I_KH @ P @ I_KH.T + gain @ R @ gain.T
-            out.innovation(k, nu, SI)
+            out.innovation(k, nu, nu @ SI.T)
         out.posterior(k, STATE.wrap(xnom[k] + dx), P)
     return out.result(s, K)
 
@@ -191,15 +199,14 @@ def run_ekf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
             H = model.jacobian(x)
             PHT = P @ _mT(H)
             S = H @ PHT + R
-            SI = np.linalg.inv(S)
-            gain = PHT @ SI
             z = y[:, k, rows]
             nu = model.residual(z, model.h(x)) if s.wrap_innovations else z - model.h(x)
+            gain, SInu = _gain(S, PHT, nu)
             x = x + (gain @ nu[..., None])[..., 0]
             I_KH = eye - gain @ H
             P = I_KH @ P @ _mT(I_KH) + gain @ R @ _mT(gain)
             x = STATE.wrap(x)
-            out.innovation(k, nu, SI)
+            out.innovation(k, nu, SInu)
         out.posterior(k, x, P)
     return out.result(s, K)
 
@@ -273,13 +280,12 @@ def run_ukf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
             S = S + R
             dxs = STATE.residual(sigmas_f, x[:, None, :])
             Pxz = _mT(dxs * Wc[:, None]) @ dz
-            SI = np.linalg.inv(S)
-            gain = Pxz @ SI
             nu = model.residual(y[:, k, rows], zp)
+            gain, SInu = _gain(S, Pxz, nu)
             x = STATE.add(x, (gain @ nu[..., None])[..., 0])
             P = P - gain @ S @ _mT(gain)
             P = 0.5 * (P + _mT(P))
-            out.innovation(k, nu, SI)
+            out.innovation(k, nu, SInu)
         out.posterior(k, x, P)
     return out.result(s, K)
 
