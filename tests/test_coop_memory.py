@@ -67,3 +67,13 @@ def test_estimate_bounds_the_peak_rss_of_a_child_process(filter, runs):
     peak = int(r.stderr.split()[-1])
     assert f'"n_runs": {runs}' in r.stdout
     assert 0.6 * est.peak_bytes < peak <= est.peak_bytes <= MEMORY_LIMIT, (peak / 1e6, est.peak_bytes / 1e6)
+
+
+def test_a_run_too_long_for_memory_names_the_params():
+    """Even one realization of 500,001 steps does not fit: the refusal names the scenario, before any work."""
+    from dataclasses import replace
+
+    from kfcal_helpers.coop import truth_model_test
+
+    with pytest.raises(ValueError, match=r"^params: .*500001 steps of the EKF.*use a smaller scenario"):
+        truth_model_test(replace(CoopParams(), duration=50_000.0), 2)

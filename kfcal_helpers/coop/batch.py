@@ -4,7 +4,9 @@ The per-run filters of :mod:`~kfcal_helpers.coop.filters` are filterpy's classes
 they stay the reference and the path for a single log.  The truth-model Monte Carlo filters many
 independent realizations with the *same* setup, so here every quantity carries a leading run axis:
 states ``x`` (N, 6), covariances ``P`` (N, 6, 6), gains ``K`` (N, 6, m), the UKF's sigma points
-(N, 13, 6).  The equations are exactly the ones filterpy applies in ``filters.py``:
+(N, 13, 6).  The equations are the ones filterpy applies in ``filters.py`` (one difference of
+rounding only: the EKF's and UKF's gain ``K = cross S^-1`` comes from one solve with S instead of
+filterpy's ``inv(S)``):
 
 * LKF (``KalmanFilter`` on ``dx = x - x_nom``): ``P- = F P F^T + Omega Q Omega^T``, ``S = H P H^T + R``,
   ``K = P H^T S^-1``, Joseph update ``P = (I - K H) P (I - K H)^T + K R K^T``; the innovation
