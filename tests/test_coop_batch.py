@@ -122,3 +122,15 @@ def test_a_truth_of_another_shape_is_refused():
         run_batch(sim.y, FilterSetup.build("ukf", sim.params), sim.truth[:, :5])
     with pytest.raises(ValueError, match="setup must be"):
         run_batch(sim.y, "ekf")
+
+
+@pytest.mark.parametrize("name", ["lkf", "ekf", "ukf"])
+def test_a_diverging_run_is_one_value_error_without_warnings(name):
+    import warnings
+
+    sim = simulate(replace(P, duration=2.0), 2, 1)
+    setup = FilterSetup.build(name, sim.params, P0=1e300 * np.eye(6))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match=r"diverged|non-finite"):
+            run_batch(sim.y, setup, sim.truth)

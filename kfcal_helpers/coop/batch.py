@@ -32,6 +32,7 @@ filters on the same draws.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -115,9 +116,29 @@ class _Store:
         if self.x is not None:
             self.x[:, k], self.P[:, k] = x, P
 
-    def result(self, setup, K):
+    def result(self, setup, K, has):
+        bad = ~np.isfinite(self.sigma2).all(axis=(1, 2)) | ~np.isfinite(self.nis[:, has]).all(axis=1)
+        if self.nees is not None:
+            bad |= ~np.isfinite(self.nees).all(axis=1)
+        if bad.any():
+            raise ValueError(f"y: the {setup.filter.upper()} diverged (non-finite estimate) in run "
+                             f"{int(np.argmax(bad))} of the batch")
         return BatchResult(setup.filter, setup.params.dt * np.arange(K), self.nis, self.sigma2, self.nees,
                            self.errors, self.x, self.P, setup.measurement.rows)
+
+
+def _one_error(run):
+    """``run`` without numpy's warnings: a diverging run ends in one ValueError (:meth:`_Store.result`)."""
+    name = run.__name__[4:7].upper()
+
+    @functools.wraps(run)
+    def quiet(*args, **kwargs):
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            try:
+                return run(*args, **kwargs)
+            except np.linalg.LinAlgError:
+                raise ValueError(f"y: the {name} diverged (a covariance became singular)") from None
+    return quiet
 
 
 def _mT(a):
@@ -134,6 +155,7 @@ def _gain(S, cross, nu):
 
 # ---------------------------------------------------------------------------
 # LKF
+@_one_error
 def run_lkf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = False) -> BatchResult:
     """Linearized KF on measurements ``y`` (N, K, 5) of N runs, true states ``truth`` (N, K, 6) optional.
 
@@ -172,11 +194,12 @@ def run_lkf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
             P = I_KH @ P @ I_KH.T + gain @ R @ gain.T
             out.innovation(k, nu, nu @ SI.T)
         out.posterior(k, STATE.wrap(xnom[k] + dx), P)
-    return out.result(s, K)
+    return out.result(s, K, has)
 
 
 # ---------------------------------------------------------------------------
 # EKF
+@_one_error
 def run_ekf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = False) -> BatchResult:
     """Extended KF on measurements ``y`` (N, K, 5) of N runs, true states ``truth`` (N, K, 6) optional.
 
@@ -210,7 +233,7 @@ def run_ekf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
             x = STATE.wrap(x)
             out.innovation(k, nu, SInu)
         out.posterior(k, x, P)
-    return out.result(s, K)
+    return out.result(s, K, has)
 
 
 # ---------------------------------------------------------------------------
@@ -249,6 +272,7 @@ def _ut(points, mean, Wm, Wc, residual):
     return m, r, _mT(r * Wc[:, None]) @ r
 
 
+@_one_error
 def run_ukf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = False) -> BatchResult:
     """Unscented KF on measurements ``y`` (N, K, 5) of N runs, true states ``truth`` (N, K, 6) optional.
 
@@ -289,7 +313,7 @@ def run_ukf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
             P = 0.5 * (P + _mT(P))
             out.innovation(k, nu, SInu)
         out.posterior(k, x, P)
-    return out.result(s, K)
+    return out.result(s, K, has)
 
 
 _RUNNERS = {"lkf": run_lkf_batch, "ekf": run_ekf_batch, "ukf": run_ukf_batch}
@@ -308,7 +332,7 @@ def run_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = False
 
     Returns
     -------
-    BatchResult
+    BatchResult.  ValueError naming ``y`` if a run diverges (a non-finite estimate, NEES or NIS).
     """
     setup = require_instance("setup", setup, FilterSetup)
     return _RUNNERS[setup.filter](y, setup, truth, keep_estimates=keep_estimates)
