@@ -385,7 +385,7 @@ def test_predict_only_check():
         fb = check(lambda *a, out=out: out)
         assert fb.message == HINTS["05.1"]["tuple"]
     fb = check(lambda x, P, Phi, Q, n: (predict_loop(x, P, Phi, Q, n)[0], np.eye(3)))
-    assert fb.message.startswith("x is right, P is not")
+    assert fb.message.startswith("x̄ is right, M is not")
 
 
 def test_trapezoid_check():

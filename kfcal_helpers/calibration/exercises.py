@@ -587,29 +587,30 @@ def _predict(x, P, Phi, Q, n, transposed=False, q=True):
 _PREDICT_ONLY = Exercise(
     "05.1",
     praise="your predict-only loop matches filterpy's predict()",
-    hint="each of the n steps is one filterpy predict(): compare what it does to x and to P with your loop",
+    hint="each of the n steps is one filterpy predict(): compare what it does to x̄ and to M with your loop",
     hints={
-        "no_q": "P also grows by the process noise Q at every step",
-        "transposed": "the covariance step is Φ P Φᵀ (Φ on the left), not Φᵀ P Φ",
-        "x_static": "the estimate is predicted too: x ← Φ x at every step",
+        "no_q": "M also grows by the process noise Q at every step",
+        "transposed": "the covariance step is Φ M Φᵀ (Φ on the left), not Φᵀ M Φ",
+        "x_static": "the estimate is predicted too: x̄ ← Φ x̄ at every step",
         "one_short": "your loop runs one step too few: n steps means n predictions",
         "one_long": "your loop runs one step too many: n steps means n predictions",
         "q_once": "Q is added at every step, not once at the end",
-        "p_static": "P must be propagated as well: P ← Φ P Φᵀ + Q at every step",
-        "tuple": "return a tuple (x, P): x of shape (3,) or (3, 1), P of shape (3, 3)",
+        "p_static": "the covariance must be propagated as well: M ← Φ M Φᵀ + Q at every step",
+        "tuple": "return a tuple (x, M): x of shape (3,) or (3, 1), M of shape (3, 3)",
     },
 )
 
 
 def check_predict_only(func) -> Feedback:
-    """Exercise 05.1: ``func(x, P, Phi, Q, n) -> (x, P)`` after ``n`` predict-only steps.
+    """Exercise 05.1: ``func(x, M, Phi, Q, n) -> (x, M)`` after ``n`` predict-only steps (M the covariance,
+    the a priori one after the first step).
 
-    Called with the defaults' Φ, Q, x = [1, -0.5, 0.02] (m, m/s, m/s²), a full P (the filter's
-    at the fix t = 2 s) and n = 40; x may come back as (3,) or (3, 1), P as (3, 3).
+    Called with the defaults' Φ, Q, x = [1, -0.5, 0.02] (m, m/s, m/s²), a full covariance (the filter's
+    a posteriori P at the fix t = 2 s) and n = 40; x may come back as (3,) or (3, 1), M as (3, 3).
     """
     ex = _PREDICT_ONLY
     x0, P0, Phi, Q, n = _predict_test()
-    out, fb = _call_once(ex, func, "predict_only(x, P, Phi, Q, n)", (x0.copy(), P0.copy(), Phi.copy(), Q.copy(), n))
+    out, fb = _call_once(ex, func, "predict_only(x, M, Phi, Q, n)", (x0.copy(), P0.copy(), Phi.copy(), Q.copy(), n))
     if fb is not None:
         return fb
     pair = _pair(out)
@@ -629,9 +630,9 @@ def check_predict_only(func) -> Feedback:
         if _close(x, xw, **tol) and _close(P, Pw, **tol):
             return ex.mistake(key)
     if _close(x, x_ok, **tol):
-        return ex.feedback(False, "x is right, P is not: " + ex.hint)
+        return ex.feedback(False, "x̄ is right, M is not: " + ex.hint)
     if _close(P, P_ok, **tol):
-        return ex.feedback(False, "P is right, x is not: " + ex.hint)
+        return ex.feedback(False, "M is right, x̄ is not: " + ex.hint)
     return ex.feedback(False)
 
 
