@@ -661,6 +661,29 @@ def test_an_unprintable_path_is_refused_before_writing(tmp_path, monkeypatch, ca
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("argv, blocked, word", [
+    (["figures", "{tmp}/out"], "calib_errors.png", "DIR"),
+    (["figures", "{tmp}/out", "--svg", "--only", "coop_paths"], "coop_paths.svg", "DIR"),  # also
+    (["calibrate", "--runs", "3", "--figures", "{tmp}/out"], "calib_checks.png", "--figures"),  # also
+], ids=["figures", "figures --svg", "calibrate --figures"])
+def test_a_target_that_is_a_directory_is_refused_before_the_work(argv, blocked, word, tmp_path, capsys, monkeypatch):
+    """``DIR/<name>.png`` exists as a directory, so that file cannot be written: refused in one line
+    before any figure is drawn or Monte Carlo run, and no other file written (they were, before)."""
+    (tmp_path / "out" / blocked).mkdir(parents=True)
+    before = _files(tmp_path)
+
+    def no_work(*a, **k):
+        raise AssertionError("long work started")
+
+    monkeypatch.setattr(calibration_cli, "run_monte_carlo", no_work)
+    _no_figure_data(monkeypatch, no_work)
+    code, out, err = _run([a.replace("{tmp}", str(tmp_path)) for a in argv], capsys)
+    assert code == 2 and out == ""
+    _one_error_line(err, argv[0])
+    assert word in err and blocked in err and "a directory of that name exists" in err
+    assert _files(tmp_path) == before
+
+
 def _sh(redirect: str, argv, env=ENV, cwd=None):
     return subprocess.run(["sh", "-c", f'exec "$@" {redirect}', "sh", sys.executable, "-m", "kfcal_helpers", *argv],
                           capture_output=True, env=env, cwd=cwd, timeout=120)
