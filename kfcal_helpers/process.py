@@ -107,12 +107,12 @@ def _on_signal(signum, frame):
     os._exit(code)
 
 
-def install_signal_handlers(command: str | None = None) -> list:
+def install_signal_handlers(command: str | None = None, replace=()) -> list:
     """Handle SIGINT and SIGTERM as the module docstring says, naming ``command`` in the line.
 
     Installs a handler only in the main thread and only where the default one is in place (Python's
-    ``default_int_handler`` for SIGINT, ``SIG_DFL`` for SIGTERM); if this module's handler is already
-    installed, only ``command`` is updated.  Returns ``[(signal, previous handler)]`` of the handlers
+    ``default_int_handler`` for SIGINT, ``SIG_DFL`` for SIGTERM, or one of the handlers in ``replace``);
+    if this module's handler is already installed, only ``command`` is updated.  Returns ``[(signal, previous handler)]`` of the handlers
     installed, for :func:`restore_signal_handlers`.
     """
     if command is not None:
@@ -125,7 +125,7 @@ def install_signal_handlers(command: str | None = None) -> list:
             continue
         try:
             previous = signal.getsignal(signum)
-            if previous is _on_signal or previous is not defaults[name]:
+            if previous is _on_signal or not (previous is defaults[name] or previous in replace):
                 continue  # ours already, or someone else's (a notebook kernel, a test runner)
             signal.signal(signum, _on_signal)
         except (ValueError, OSError):  # not the main thread, or not supported on this platform
@@ -311,12 +311,13 @@ def use_writable_matplotlib_config() -> str | None:
     return path
 
 
-def prepare(argv=None) -> None:
+def prepare(argv=None, replace=()) -> None:
     """Everything above, for the command-line process, in this order: the signal handlers (naming the
-    command ``argv[0]``, default ``sys.argv[1:]``), the streams (kept), matplotlib's directory, and
-    no matplotlib log line on stderr (e.g. "building the font cache")."""
+    command ``argv[0]``, default ``sys.argv[1:]``; taking over from the handlers in ``replace``), the
+    streams (kept), matplotlib's directory, and no matplotlib log line on stderr (e.g. "building the
+    font cache")."""
     words = sys.argv[1:] if argv is None else list(argv)
-    install_signal_handlers(command_name(words))
+    install_signal_handlers(command_name(words), replace)
     standard_streams(restore=False).__enter__()
     try:
         use_writable_matplotlib_config()

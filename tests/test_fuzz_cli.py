@@ -535,7 +535,9 @@ print("the signal was never raised", file=sys.stderr)
     ("argparse", "SIGTERM", ["coop"]),
     ("numpy", "SIGTERM", ["calibrate", "--runs", "300000"]),  # also: the heavy imports
     ("matplotlib", "SIGTERM", ["figures", "{tmp}", "--only", "coop_paths"]),  # also
-], ids=["SIGINT at argparse", "SIGTERM at argparse", "SIGTERM at numpy", "SIGTERM at matplotlib"])
+    ("process", "SIGINT", ["calibrate", "--runs", "3"]),  # also: while kfcal_helpers.process loads
+], ids=["SIGINT at argparse", "SIGTERM at argparse", "SIGTERM at numpy", "SIGTERM at matplotlib",
+        "SIGINT at kfcal_helpers.process"])
 def test_signal_during_the_imports(module, signame, argv, tmp_path):
     """The handlers are installed before the command line imports anything heavy: a signal during
     the imports ends in one line and 130/143, not a KeyboardInterrupt traceback or a silent kill."""
@@ -733,6 +735,7 @@ def test_text_output_survives_any_encoding_real_process(encoding, argv, expected
     assert expected in r.stdout, r.stdout[-300:]
 
 
+@posix_only
 def test_unwritable_matplotlib_directories_print_nothing():
     """HOME (so ~/.config/matplotlib, ~/.cache/matplotlib) or MPLCONFIGDIR not writable: nothing
     about matplotlib on stderr (it printed two lines per command), the usual output; the private
