@@ -17,6 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from . import problems, slides
+from .output import path_text
 from .registry import LectureFigure
 from .slides import check_directory, save_atomic, use_agg_backend
 from .validation import require_choice
@@ -133,5 +134,5 @@ def run(args) -> int:
     slides.check_targets(path, [f.name for f in selected], args.svg, "DIR")
     use_agg_backend()
     for path in save_figures(selected, args.directory, svg=args.svg, argname="DIR"):
-        print(path)
+        print(path_text(path))
     return 0

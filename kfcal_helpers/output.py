@@ -10,7 +10,7 @@ import math
 
 from .process import PARTIAL_FILES
 
-__all__ = ["dumps_json", "PARTIAL_FILES", "require_printable"]
+__all__ = ["dumps_json", "PARTIAL_FILES", "require_printable", "path_text"]
 
 
 def _strict(value):
@@ -43,3 +43,28 @@ def require_printable(name: str, text: str, stream=None) -> str:
         raise ValueError(f"{name}: {text!r} cannot be printed in the output's encoding {encoding} ({exc.reason}); "
                          "set PYTHONIOENCODING=utf-8") from None
     return text
+
+
+def path_text(path, stream=None) -> str:
+    """``path`` as text to print on ``stream`` (default ``sys.stdout``): each character the stream's
+    encoding lacks as a backslash escape (``\\xe9``, ``\\u03c3``), never a look-alike, so the printed
+    path is unambiguous in any encoding; a file name's undecodable bytes (surrogate escapes) are kept,
+    to be written back as those bytes."""
+    import sys
+
+    text = str(path)
+    stream = sys.stdout if stream is None else stream
+    encoding = getattr(stream, "encoding", None) or "utf-8"
+    out = []
+    for ch in text:
+        if 0xDC80 <= ord(ch) <= 0xDCFF:
+            out.append(ch)
+            continue
+        try:
+            ch.encode(encoding)
+            out.append(ch)
+        except UnicodeEncodeError:
+            out.append(ch.encode("ascii", "backslashreplace").decode("ascii"))
+        except LookupError:
+            return text
+    return "".join(out)

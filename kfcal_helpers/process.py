@@ -14,9 +14,11 @@ imports only the standard library's always-loaded modules (``os``, ``sys``, ``si
   but is rarely sent; nothing here needs POSIX-only calls.
 * Streams: a stream closed before the start (``>&-``, ``sys.stdout is None``) is replaced by
   ``os.devnull``: what would be printed there is discarded and the command runs normally.  Text on
-  stdout and stderr survives any encoding: a character the encoding lacks is written as an ASCII
-  fallback (``sigma``, ``+/-``, ``Delta``, ...), a file name's undecodable byte as that byte, anything
-  else as a backslash escape (:data:`FALLBACK_ERRORS`).
+  stdout survives any encoding: a character the encoding lacks is written as an ASCII fallback
+  (``sigma``, ``+/-``, ``Delta``, ...), a file name's undecodable byte as that byte, anything else as
+  a backslash escape (:data:`FALLBACK_ERRORS`; paths are printed through
+  :func:`kfcal_helpers.output.path_text`, escaped, never transliterated).  stderr keeps Python's
+  backslash escapes (the handler is set only on a strict stderr).
 * matplotlib: when the config or cache directory matplotlib would use is not writable, the
   environment variable ``MPLCONFIGDIR`` is set to a private directory (``kfcal-matplotlib-UID`` in
   the temporary folder, mode 700, reused so that the font cache is built once), so matplotlib prints
@@ -206,6 +208,8 @@ class standard_streams:
                     continue
                 setattr(sys, name, stream)
                 self._saved.append((name, None, None, stream))
+            if name == "stderr" and getattr(stream, "errors", None) != "strict":
+                continue  # Python's stderr escapes what it cannot encode: messages echo input as typed
             previous = use_fallback_errors(stream)
             if previous is not None:
                 self._saved.append((name, stream, previous, None))

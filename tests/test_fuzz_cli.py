@@ -616,6 +616,7 @@ NARROW = [  # (stdout encoding, argv, bytes the output contains)
     ("ascii", ["figures", "{tmp}/dé", "--only", "coop_paths"], b"/d\\xe9/coop_paths.png\n"),
     ("utf-8", ["figures", "{tmp}/x\udcff", "--only", "coop_paths"], b"/x\xff/coop_paths.png\n"),  # an undecodable name
     ("cp1252", ["figures", "--list"], b"sigma"),  # also
+    ("ascii", ["figures", "{tmp}/σ", "--only", "coop_paths"], b"/\\u03c3/coop_paths.png\n"),  # also: escaped, not "sigma"
     ("ascii", ["calibrate", "--runs", "3", "--figures", "{tmp}/Δ"], b"wrote "),  # also
 ]
 

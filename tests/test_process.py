@@ -11,7 +11,7 @@ import threading
 import pytest
 
 from kfcal_helpers import process
-from kfcal_helpers.output import require_printable
+from kfcal_helpers.output import path_text, require_printable
 
 
 @pytest.mark.parametrize("text, encoding, expected", [
@@ -81,3 +81,12 @@ def test_matplotlib_directory_left_alone_when_writable(tmp_path):
                        env={**process.os.environ, "MPLCONFIGDIR": str(tmp_path)})
     assert r.returncode == 0 and r.stderr == "", r.stderr
     assert r.stdout.split() == ["None", "True", "None"]
+
+
+def test_path_text_escapes_what_the_stream_lacks():
+    ascii_out = io.TextIOWrapper(io.BytesIO(), encoding="ascii")
+    latin = io.TextIOWrapper(io.BytesIO(), encoding="latin-1")
+    assert path_text("out/σé/x.png", ascii_out) == "out/\\u03c3\\xe9/x.png"  # never "sigma"
+    assert path_text("out/σé/x.png", latin) == "out/\\u03c3é/x.png"
+    assert path_text("out/x\udcff", ascii_out) == "out/x\udcff"  # kept: written back as the byte 0xff
+    assert path_text("out/x\udcff", ascii_out).encode("ascii", process.FALLBACK_ERRORS) == b"out/x\xff"

@@ -150,7 +150,7 @@ def _params(args):
 
 
 def run(args) -> int:
-    from ..output import dumps_json
+    from ..output import dumps_json, path_text
 
     require_int("--runs", args.runs, minimum=2)
     if args.figures is not None:
@@ -189,5 +189,5 @@ def run(args) -> int:
     if mc.truth == "analytic" and not all(c.passed for c in mc.checks().values()):
         print(MISMATCH_NOTE)
     for p in written:
-        print(f"wrote {p}")
+        print(f"wrote {path_text(p)}")
     return 0
