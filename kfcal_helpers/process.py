@@ -9,8 +9,10 @@ imports only the standard library's always-loaded modules (``os``, ``sys``, ``si
 
 * Signals: SIGINT (Ctrl-C) and SIGTERM print one line on stderr (on its own line, after a progress
   bar), remove the temporary files being written (:data:`PARTIAL_FILES`) and end the process at once
-  with status 130 (SIGINT) or 143 (SIGTERM).  A handler is installed only where the default one is
-  in place (not in a notebook kernel, not in another thread).  On Windows, SIGTERM can be handled
+  with status 130 (SIGINT) or 143 (SIGTERM): an exception raised inside a library callback could
+  be swallowed ("Exception ignored in ...") and the work go on, and the Monte Carlo's worker threads
+  end with the process.  A handler is installed only where the default one is in place (not in a
+  notebook kernel, not in another thread).  On Windows, SIGTERM can be handled
   but is rarely sent; nothing here needs POSIX-only calls.
 * Streams: a stream closed before the start (``>&-``, ``sys.stdout is None``) is replaced by
   ``os.devnull``: what would be printed there is discarded and the command runs normally.  Text on
