@@ -5,9 +5,9 @@ problem's controls beside the image and redraws on every change.
 Each problem's ``demos`` module (``kfcal_helpers.calibration.demos``, ``kfcal_helpers.coop.demos``)
 splits its demo into a *compute* function, which returns plain arrays in a small dataclass, and a
 figure class built once (:func:`new_figure`) whose ``update(demo)`` only replaces the data, so a redraw
-costs one render; a figure class may also offer ``draw()``, which renders its figure faster onto its canvas
-(e.g. with a :class:`CachedBackground`), and :class:`LiveDemo` then uses it.  A demo result may name in ``finite_fields`` (a class attribute) the arrays that
-must be finite before it is drawn.  A setting that cannot be computed (e.g. a covariance losing
+costs one render; a figure class may also offer ``draw()``, which renders its figure faster onto its
+canvas (e.g. with a :class:`CachedBackground`), and :class:`LiveDemo` then uses it.  A demo result may
+name in ``finite_fields`` (a class attribute) the arrays that must be finite before it is drawn.  A setting that cannot be computed (e.g. a covariance losing
 positive definiteness) shows a one-line message in the image's place, never a traceback.
 """
 
@@ -21,8 +21,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-__all__ = ["new_figure", "figure_png", "CachedBackground", "CONTROLS_WIDTH", "DEMO_FAILURES", "require_finite_demo", "failure_message",
-           "describe_controls", "LiveDemo"]
+__all__ = ["new_figure", "figure_png", "CachedBackground", "CONTROLS_WIDTH", "DEMO_FAILURES", "require_finite_demo",
+           "failure_message", "describe_controls", "LiveDemo"]
 
 
 def new_figure(figure, figsize):

@@ -203,8 +203,8 @@ class CalibrationDemoFigure:
     Three panels (position, velocity, bias): one realization's error at 200 Hz, the filter's
     +-2 sigma, the ensemble's +-2 s at the fixes, the outage shaded (above the grid, under the curves).
     :meth:`draw` renders it onto its Agg canvas with the x axes kept from the first render (a
-    :class:`kfcal_helpers.demos.CachedBackground`), the same image as ``fig.canvas.draw()``.  ``figure``: a Figure to
-    draw on (e.g. ``matplotlib.figure.Figure()`` for a widget, outside pyplot); default a new
+    :class:`kfcal_helpers.demos.CachedBackground`), the same image as ``fig.canvas.draw()``.
+    ``figure``: a Figure to draw on (e.g. ``matplotlib.figure.Figure()`` for a widget, outside pyplot); default a new
     pyplot figure.  ``t_zoom`` (s): the y axes are scaled to the curves after ``t_zoom`` (the
     first seconds, with the 10 m prior sigma of the position, would flatten everything else).
     """
