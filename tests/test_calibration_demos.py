@@ -17,7 +17,7 @@ from kfcal_helpers.calibration.exercises import (EXERCISES, check_demo_first_fix
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
 from kfcal_helpers.exercises import ROUNDED_HINT
 
-from demo_checks import check_render
+from demo_checks import check_render, fast_draw_is_full_draw
 
 P = CalibrationParams()
 HINTS = {i: EXERCISES[i].hints for i in ("17.1", "17.2")}
@@ -115,6 +115,40 @@ def test_calibration_figure_updates_in_place():
         view.update("demo")
     with pytest.raises(ValueError, match="figure"):
         CalibrationDemoFigure(figure="fig")
+
+
+def test_calibration_fast_draw_is_the_full_draw():
+    # the live view renders only what a slider move changes (x axes kept): the same image as a full draw
+    view = CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE))
+    for kw in ({"outage": (12.0, 18.0)}, {"gps_rate": 25.0}, {"gps_rate": 1.0, "outage": (0.0, 30.0)},
+               {"W": 1e-6, "gps_pos_var": 0.01, "bias_var": 1e-6}):
+        view.update(compute_calibration_demo(n_runs=20, **kw))
+        assert fast_draw_is_full_draw(view)
+        assert len(view.spans) == (3 if "outage" in kw else 0)
+        assert all(s.get_visible() == ("outage" in kw) for s in view.axes[0].patches)
+    assert view.background.full_draws == 1
+    live = LiveDemo(calibration_controls(), calibration_demo_for, view)
+    live.controls["W"].value = 1e-3
+    assert not live.failed and live.image.value == figure_png(view.fig) and view.background.full_draws == 1
+
+
+def test_calibration_demo_keeps_its_draws_not_its_numbers():
+    # the ensemble's standard normals are kept across redraws; the numbers are those of fresh draws
+    from kfcal_helpers.calibration.engine import filter_errors_time_major, noise_of_simulation, sample_noise_time_major
+
+    for kw in ({"W": 1e-3}, {"W": 2e-4, "outage": (3.0, 9.0)}):
+        demo = compute_calibration_demo(gps_rate=4.0, n_runs=30, seed=5, **kw)
+        p = P.replace(gps_rate=4.0, W=kw["W"])
+        missing = demo.missing
+        rng_one, rng_ens = (np.random.default_rng(s) for s in np.random.SeedSequence(5).spawn(2))
+        sim = simulate(p, 1, rng_one, missing_fixes=missing)
+        e0, w_t, eta_t = sample_noise_time_major(p, 30, rng_ens)
+        one = noise_of_simulation(sim)
+        e_post = filter_errors_time_major(p, covariance_sequence(p, missing), np.concatenate([one[0], e0]),
+                                          np.concatenate([one[1].transpose(1, 0, 2), w_t], axis=1),
+                                          np.concatenate([one[2].transpose(1, 0, 2), eta_t], axis=1))[1]
+        assert np.allclose(demo.ens_std, e_post[:, 1:].std(axis=1, ddof=1), rtol=1e-12, atol=0)
+        assert np.allclose(demo.ens_mean, e_post[:, 1:].mean(axis=1), rtol=1e-12, atol=1e-15)
 
 
 def test_calibration_controls_match_the_compute_function():

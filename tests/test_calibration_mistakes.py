@@ -20,8 +20,10 @@ P = CalibrationParams()
 
 
 @pytest.fixture(scope="module")
-def rows():
-    return {mistake: mistake_row(mistake) for mistake in MISTAKES}
+def rows(mistakes_table):
+    """``mistake_row(mistake)`` of every mistake: the rows of the joined table at its defaults, which calls
+    PROBLEM.mistake_row, i.e. mistake_row (tests/conftest.py: computed once, shared with tests/test_mistakes.py)."""
+    return {mistake: mistakes_table[mistake] for mistake in MISTAKES}
 
 
 def test_rows_and_their_checks(rows):
