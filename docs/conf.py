@@ -163,7 +163,13 @@ myst_enable_extensions = ["dollarmath", "amsmath"]
 myst_heading_anchors = 3
 
 # math: MathJax 3 from inside the built site (copied after the build), never from a CDN
-MATHJAX_SOURCE = Path(importlib.util.find_spec("sphinx-mathjax-offline").origin).parent / "static" / "mathjax"
+_MATHJAX_PACKAGE = importlib.util.find_spec("sphinx-mathjax-offline")  # its folder's name has hyphens
+if _MATHJAX_PACKAGE is None:
+    from sphinx.errors import ConfigError
+
+    raise ConfigError("the package sphinx-mathjax-offline (MathJax for the site) is not installed: "
+                      "pip install -r environment.txt")
+MATHJAX_SOURCE = Path(_MATHJAX_PACKAGE.origin).parent / "static" / "mathjax"
 mathjax_path = "mathjax/tex-chtml.js"  # relative to _static/
 # MathJax's other combined builds and its SVG output are not used by tex-chtml.js
 _UNUSED_MATHJAX = {"tex-chtml-full-speech.js", "tex-chtml-full.js", "tex-mml-chtml.js", "tex-mml-svg.js",

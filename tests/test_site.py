@@ -9,8 +9,9 @@ that id; MathJax (served from the site itself) has typeset every formula and no 
 or ``\\begin{`` is left in the text; every image is loaded (the demos' stored images included); the search page finds
 a word; and the browser requested nothing but ``file:``/``data:``/``blob:`` URLs.
 
-Needs Sphinx and myst-nb (pinned in ``environment.txt``) and Chromium with chromedriver (Debian:
-``apt-get install chromium chromium-driver``); skipped, with the reason, without them.
+Needs Sphinx and myst-nb (pinned in ``environment.txt``); the tests that open a browser also need
+Chromium with chromedriver (Debian: ``apt-get install chromium chromium-driver``). Each is skipped,
+with the reason, without them.
 ``KFCAL_CHROMIUM`` / ``KFCAL_CHROMEDRIVER`` select other binaries.
 """
 
@@ -51,7 +52,7 @@ CHROMEDRIVER = _binary("KFCAL_CHROMEDRIVER", "chromedriver")
 
 pytest.importorskip("sphinx", reason="site test skipped: Sphinx is not installed (pip install -r environment.txt)")
 pytest.importorskip("myst_nb", reason="site test skipped: myst-nb is not installed (pip install -r environment.txt)")
-pytestmark = pytest.mark.skipif(
+needs_browser = pytest.mark.skipif(
     CHROMIUM is None or CHROMEDRIVER is None,
     reason=("browser test of the course site skipped: no Chromium/chromedriver found "
             f"(chromium: {CHROMIUM or 'missing'}, chromedriver: {CHROMEDRIVER or 'missing'}; "
@@ -225,6 +226,21 @@ def test_internal_links_resolve(site):
     assert not external, sorted(external)
 
 
+def test_no_stylesheet_or_script_loads_from_the_network(site):
+    """No CSS of the site imports a stylesheet or a font from the network, and no page loads MathJax
+    or a theme file from a CDN (the browser test also watches the requests; this one needs no browser)."""
+    remote = re.compile(r"""(@import\s+(url\()?\s*['"]?|url\(\s*['"]?)(https?:)?//""")
+    found = [f"{css.relative_to(site)}: {m.group(0)}" for css in site.rglob("*.css")
+             for m in remote.finditer(css.read_text(encoding="utf-8", errors="replace"))]
+    assert not found, found
+    mathjax = site / "_static" / "mathjax" / "tex-chtml.js"
+    assert mathjax.is_file() and mathjax.stat().st_size > 500_000, "MathJax is not inside the built site"
+    for page in _pages(site):
+        scripts = [link for link in _parse(page).links if "mathjax" in link.lower()]
+        assert scripts and all(not urllib.parse.urlsplit(link).scheme for link in scripts), (page, scripts)
+
+
+@needs_browser
 def test_every_page_in_the_browser(site, browser):
     """Each page loads from file://, typesets all its math, shows all its images, logs no console
     error or warning and requests no URL outside the site."""
@@ -258,6 +274,7 @@ def test_every_page_in_the_browser(site, browser):
     assert n_images >= len(LESSONS), f"only {n_images} images on the whole site"
 
 
+@needs_browser
 @pytest.mark.parametrize("name", [n for n in LESSONS if "live_demo" in n])
 def test_demo_pages_show_the_stored_image(site, browser, name):
     """The live demo's widget becomes the image it stored and the note that its controls need Jupyter."""
@@ -276,6 +293,7 @@ def test_demo_pages_show_the_stored_image(site, browser, name):
     assert "application/vnd.jupyter.widget" not in browser.page_source
 
 
+@needs_browser
 def test_search_finds_a_word(site, browser):
     """Sphinx's search works from file:// with no server: 'filterpy' is found on several lessons."""
     from selenium.webdriver.common.by import By
