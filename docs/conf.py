@@ -147,8 +147,8 @@ sync_lessons()
 # -- the site ---------------------------------------------------------------------------------------
 
 project = "Kalman filtering, step by step"
-author = "the kfcal-helpers contributors"
-copyright = "the kfcal-helpers contributors; notebooks CC BY 4.0, code MIT"
+author = "The kfcal-helpers contributors"
+copyright = "2026 The kfcal-helpers contributors; text, equations and figures CC BY 4.0, code MIT"
 language = "en"
 
 extensions = ["myst_nb", "sphinx.ext.mathjax"]
