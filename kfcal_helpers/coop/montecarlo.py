@@ -30,7 +30,7 @@ from scipy import stats
 
 from ..consistency import Check, chi2_bounds, inside_fraction
 from ..progress import progress
-from ..validation import require_int, require_probability
+from ..validation import require_int, require_significance
 from .filters import FilterSetup, run
 from .model import N_MEAS, N_STATES, CoopParams
 from .simulation import simulate
@@ -183,7 +183,7 @@ def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0,
     MonteCarloResult
     """
     n_runs = require_int("n_runs", n_runs, minimum=1)
-    alpha = require_probability("alpha", alpha)
+    alpha = require_significance("alpha", alpha)
     workers = default_workers() if workers is None else require_int("workers", workers, minimum=1)
     setup = FilterSetup.build(filter, params, **settings)
     p = setup.params
