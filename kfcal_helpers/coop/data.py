@@ -27,7 +27,9 @@ from __future__ import annotations
 import io
 import os
 import stat
+import struct
 import warnings
+import zlib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -217,7 +219,9 @@ def _read_bytes(f: Path, limit: int, argname: str, name: str) -> bytes:
             mode = os.fstat(fh.fileno()).st_mode
             if not stat.S_ISREG(mode):
                 raise ValueError(f"{argname}: {_named(f)} is {_kind(mode)}; a log is read from regular files only")
-            data = fh.read(limit + 1)
+            data = fh.read(min(limit, info.st_size) + 1)  # read(n) reserves n bytes: ask for what is there
+            if len(data) > info.st_size:  # it grew (or a file of unknown size, such as /proc's)
+                data += fh.read(limit + 1 - len(data))
     except OSError as exc:
         raise _cannot_read(argname, f, exc) from None
     if len(data) > limit:  # it grew after the check
@@ -280,6 +284,51 @@ def _check_mat_header(name: str, shape: tuple, cls: str) -> None:
         raise ValueError(too_many_steps("ydata", shape[1]))
 
 
+#: MATLAB class numbers of a v5 array's flags, by scipy.io.whosmat's names
+_MAT5_CLASSES = {1: "cell", 2: "struct", 3: "object", 4: "char", 5: "sparse", 6: "double", 7: "single", 8: "int8",
+                 9: "uint8", 10: "int16", 11: "uint16", 12: "int32", 13: "uint32", 14: "int64", 15: "uint64",
+                 16: "function", 17: "opaque"}
+
+
+def _mat5_headers(data: bytes) -> list | None:
+    """``[(name, shape, class)]`` of a MATLAB v5 file's variables (as ``scipy.io.whosmat`` gives them), read
+    from each variable's header only: of a compressed variable just the first 4 kB are inflated, so a small
+    file that expands to gigabytes costs nothing.  None for a file that is not v5 (v4, v7.3).
+    Raises ValueError (no argument name) for a damaged v5 file."""
+    if len(data) < 128 or data[126:128] not in (b"IM", b"MI"):
+        return None
+    e = "<" if data[126:128] == b"IM" else ">"
+    if struct.unpack_from(e + "H", data, 124)[0] != 0x0100:
+        return None
+
+    def element(buf, pos):  # (type, body, next position) of the data element at pos
+        mtype, nbytes = struct.unpack_from(e + "II", buf, pos)
+        if mtype >> 16:  # small element: the data sits in the tag's second word
+            return mtype & 0xFFFF, buf[pos + 4:pos + 4 + (mtype >> 16)], pos + 8
+        end = pos + 8 + nbytes
+        return mtype, buf[pos + 8:end], end if mtype == 15 else end + (-nbytes) % 8
+
+    out, pos = [], 128
+    try:
+        while pos + 8 <= len(data):
+            mtype, body, pos = element(data, pos)
+            if mtype == 15:  # miCOMPRESSED: inflate the matrix header only
+                head = zlib.decompressobj().decompress(body, 4096)
+                mtype, body, _ = element(head, 0)
+            if mtype != 14:  # not miMATRIX (e.g. a subsystem block)
+                continue
+            _, flags, p = element(body, 0)
+            _, dims, p = element(body, p)
+            _, name, _ = element(body, p)
+            word = struct.unpack_from(e + "I", flags, 0)[0]
+            cls = "logical" if word & 0x200 else _MAT5_CLASSES.get(word & 0xFF, "unknown")
+            shape = struct.unpack(e + f"{len(dims) // 4}i", dims[:len(dims) // 4 * 4])
+            out.append((name.decode("latin1"), tuple(shape), cls))
+    except (struct.error, zlib.error) as exc:
+        raise ValueError(f"damaged MATLAB v5 file ({exc})") from None
+    return out
+
+
 def _read_mat(path: Path, argname: str) -> dict:
     from scipy.io import loadmat, whosmat
 
@@ -287,7 +336,9 @@ def _read_mat(path: Path, argname: str) -> dict:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            headers = whosmat(io.BytesIO(data))
+            headers = _mat5_headers(data)
+            if headers is None:  # not v5: scipy reads the headers (v4 is not compressed; v7.3 is refused)
+                headers = whosmat(io.BytesIO(data))
     except Exception as exc:  # scipy raises several types for files that are not MATLAB files
         reason = " ".join(str(exc).split())
         raise ValueError(f"{argname}: {path} is not a readable MATLAB file ({reason})") from None

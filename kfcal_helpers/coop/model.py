@@ -102,9 +102,9 @@ def run_bytes(n_steps: int) -> float:
 
 def too_many_steps(name: str, n_steps) -> str:
     """The message refusing a run of ``n_steps`` samples (> MAX_STEPS), naming ``name``."""
-    return (f"{name}: {n_steps:.0f} steps would need about {run_bytes(n_steps) / 1e6:.0f} MB to filter "
-            f"({RUN_BYTES_PER_STEP} bytes per step), more than the {MEMORY_LIMIT / 1e6:.0f} MB allowed; "
-            f"use at most {MAX_STEPS} steps")
+    return (f"{name}: {n_steps:.0f} steps, more than the {MAX_STEPS} allowed: one filter run of them would need "
+            f"about {run_bytes(n_steps) / 1e6:.0f} MB ({RUN_BYTES_PER_STEP} bytes per step), more than the "
+            f"{MEMORY_LIMIT / 1e6:.0f} MB memory limit; use fewer steps")
 
 
 def _diag(*values):
