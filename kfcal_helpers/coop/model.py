@@ -130,7 +130,8 @@ class CoopParams:
     every filter use the same ``Omega`` (:meth:`process_noise`).
     ``P0`` (6x6) is the covariance of the initial state about ``x0``: the truth-model
     tests draw the true initial state from N(x0, P0) and every filter starts at
-    (x0, P0).  Arrays are stored read-only.
+    (x0, P0).  Arrays are stored read-only.  ``duration / dt`` must be a whole number of steps, fewer
+    than :data:`MAX_STEPS` (one filter run of more would not fit in the 500 MB memory limit).
     """
 
     L: float = 0.5  #: UGV wheelbase, m
