@@ -15,7 +15,7 @@ from kfcal_helpers.calibration.demos import (LIVE_FIGSIZE, CalibrationDemo, Cali
 from kfcal_helpers.calibration.exercises import (EXERCISES, check_demo_first_fix_sigma, check_demo_ratio_band,
                                                  first_fix_sigmas)
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
-from kfcal_helpers.exercises import ROUNDED_HINT, ROUNDED_RTOL
+from kfcal_helpers.exercises import ROUNDED_HINT
 
 from demo_checks import check_render
 
@@ -158,14 +158,15 @@ def test_check_17_1_first_fix_sigma():
     }
     for key, value in wrong.items():
         assert _rejected(check_demo_first_fix_sigma(value), "17.1", key), key
-    # sigma_p computed from the 3.16 readout is 6.6e-4 (relative) below the right one: outside the check's 1e-4,
-    # inside ROUNDED_RTOL, where the generic "digits copied from a printout" hint would mislead
-    assert 1e-4 < abs(wrong["rounded_readout"][0] / right[0] - 1) < ROUNDED_RTOL
-    four_digits = lambda a: [float(f"{x:.4g}") for x in a]  # noqa: E731  the exercise's 4 significant digits
+    # sigma_p computed from the 3.16 readout is 6.6e-4 (relative) below the right one: a small difference of method
+    # (not a rounding of the right value), which gets its own hint, also when copied to 4 significant digits
+    assert 1e-4 < abs(wrong["rounded_readout"][0] / right[0] - 1) < 1e-3
+    four_digits = lambda a: [float(f"{x:.4g}") for x in a]  # noqa: E731
     assert four_digits(wrong["rounded_readout"]) == [3.013, 0.03997, 0.1]
     assert _rejected(check_demo_first_fix_sigma(four_digits(wrong["rounded_readout"])), "17.1", "rounded_readout")
-    assert check_demo_first_fix_sigma(four_digits(right)).correct         # [3.015, 0.03997, 0.1]
-    assert check_demo_first_fix_sigma([3.0156, 0.03997, 0.1]).message == ROUNDED_HINT  # nearer the right value than any mistake
+    # the one format rule: the computed value, no rounding; the right value rounded is told so
+    assert check_demo_first_fix_sigma(four_digits(right)).message == ROUNDED_HINT  # [3.015, 0.03997, 0.1]
+    assert check_demo_first_fix_sigma([3.0156, 0.03997, 0.1]).message == EXERCISES["17.1"].hint  # near, but no rounding
     assert not check_demo_first_fix_sigma(...).answered
     for bad in ("3.015", [1.0, 2.0], None):
         fb = check_demo_first_fix_sigma(bad)
@@ -178,16 +179,22 @@ def test_check_17_1_first_fix_sigma():
 def test_check_17_2_ratio_band():
     N = 200
     right = np.sqrt(stats.chi2.ppf([0.025, 0.975], N - 1) / (N - 1))
-    assert check_demo_ratio_band(right).correct and check_demo_ratio_band(np.round(right, 5)).correct
+    assert check_demo_ratio_band(right).correct
+    # rounded to any number of decimals, it is told to pass the computed value, never accused of a mistake
+    # (rounded to 3 decimals it is also the N-degrees-of-freedom band rounded: [0.902, 1.098] both)
+    for decimals in (3, 4, 5):
+        assert check_demo_ratio_band(np.round(right, decimals)).message == ROUNDED_HINT, decimals
     demo = compute_calibration_demo(n_runs=N)
     assert np.allclose(demo.ratio_band, right, rtol=1e-12)
     wrong = {
         "n_dof": np.sqrt(stats.chi2.ppf([0.025, 0.975], N) / N),
         "variance": stats.chi2.ppf([0.025, 0.975], N - 1) / (N - 1),
         "one_sided": np.sqrt(stats.chi2.ppf([0.05, 0.95], N - 1) / (N - 1)),
-        "normal": 1 + np.array([-1, 1]) * 1.959964 / np.sqrt(2 * (N - 1)),
-        "mean_band": 1 + np.array([-1, 1]) * 1.959964 / np.sqrt(N),
+        "normal": 1 + np.array([-1, 1]) * stats.norm.ppf(0.975) / np.sqrt(2 * (N - 1)),
+        "mean_band": 1 + np.array([-1, 1]) * stats.norm.ppf(0.975) / np.sqrt(N),
     }
+    for key in ("normal", "mean_band"):  # with the usual z = 1.96 too
+        assert _rejected(check_demo_ratio_band(1 + (wrong[key] - 1) * 1.96 / stats.norm.ppf(0.975)), "17.2", key)
     for key, value in wrong.items():
         assert _rejected(check_demo_ratio_band(value), "17.2", key), key
     assert not check_demo_ratio_band(...).answered and not check_demo_ratio_band([0.9]).correct
