@@ -37,6 +37,7 @@ __all__ = [
     "RUN_BYTES_PER_STEP",
     "BASE_BYTES",
     "MAX_STEPS",
+    "MAX_PARAMS_STEPS",
     "run_bytes",
     "too_many_steps",
     "CoopParams",
@@ -95,6 +96,11 @@ BASE_BYTES = 150e6
 MAX_STEPS = int((MEMORY_LIMIT - BASE_BYTES) // RUN_BYTES_PER_STEP)
 
 
+#: the most steps a CoopParams may describe (duration / dt): beyond it the states of one run alone would
+#: take more than 48 GB, and the step count is no longer an exact integer in float arithmetic far beyond
+MAX_PARAMS_STEPS = 10**9
+
+
 def run_bytes(n_steps: int) -> float:
     """Estimated peak memory (bytes) of one filter run over ``n_steps`` samples, interpreter included."""
     return BASE_BYTES + RUN_BYTES_PER_STEP * float(n_steps)
@@ -130,8 +136,9 @@ class CoopParams:
     every filter use the same ``Omega`` (:meth:`process_noise`).
     ``P0`` (6x6) is the covariance of the initial state about ``x0``: the truth-model
     tests draw the true initial state from N(x0, P0) and every filter starts at
-    (x0, P0).  Arrays are stored read-only.  ``duration / dt`` must be a whole number of steps, fewer
-    than :data:`MAX_STEPS` (one filter run of more would not fit in the 500 MB memory limit).
+    (x0, P0).  Arrays are stored read-only.  ``duration / dt`` must be a whole number of steps, at most
+    :data:`MAX_PARAMS_STEPS` (1e9); runs refuse far fewer by their memory estimates (a filter run: more
+    than :data:`MAX_STEPS`; the Monte Carlo: its own estimate).
     """
 
     L: float = 0.5  #: UGV wheelbase, m
@@ -151,10 +158,9 @@ class CoopParams:
         for name in ("L", "dt", "duration"):
             object.__setattr__(self, name, require_positive(name, getattr(self, name)))
         steps = self.duration / self.dt
-        if not steps < MAX_STEPS:  # also inf (dt = 5e-324)
-            raise ValueError(too_many_steps("duration / dt", steps + 1) if math.isfinite(steps) else
-                             f"duration / dt must be at most {MAX_STEPS - 1} steps, got {self.duration:g} s / "
-                             f"{self.dt:g} s")
+        if not steps <= MAX_PARAMS_STEPS:  # also inf (dt = 5e-324)
+            raise ValueError(f"duration / dt must be at most {MAX_PARAMS_STEPS:.0e} steps, got {self.duration:g} s / "
+                             f"{self.dt:g} s = {steps:.3g} steps")
         if abs(steps - round(steps)) > 1e-9 * max(steps, 1.0) or round(steps) < 1:
             raise ValueError(f"duration must be a whole number (>= 1) of dt = {self.dt:g} s, got {self.duration:g} s")
         arrays = {
