@@ -18,7 +18,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from scipy import stats
 
-from .validation import require_int, require_probability
+from .validation import MIN_BAND_ALPHA, require_int, require_significance
 
 __all__ = ["chi2_bounds", "normalized_squares", "nees", "nis", "inside_fraction", "Check", "MonteCarloSummary",
            "format_checks"]
@@ -33,8 +33,9 @@ def chi2_bounds(dim: int, n_samples: int, alpha: float = 0.05) -> tuple[float, f
         Dimension of the state (NEES) or measurement (NIS).
     n_samples : int, >= 1
         Number of Monte Carlo runs averaged (or time steps, for a time average).
-    alpha : float in (0, 1)
-        Significance level of the two-sided test.
+    alpha : float in [1e-14, 1) (:data:`~kfcal_helpers.validation.MIN_BAND_ALPHA`)
+        Significance level of the two-sided test (a Bonferroni-split level included); below the
+        limit the upper quantile ``ppf(1 - alpha/2)`` would be infinite.
 
     Returns
     -------
@@ -42,7 +43,7 @@ def chi2_bounds(dim: int, n_samples: int, alpha: float = 0.05) -> tuple[float, f
     """
     dim = require_int("dim", dim, minimum=1)
     n_samples = require_int("n_samples", n_samples, minimum=1)
-    alpha = require_probability("alpha", alpha)
+    alpha = require_significance("alpha", alpha, minimum=MIN_BAND_ALPHA)
     dof = dim * n_samples
     lower = stats.chi2.ppf(alpha / 2, dof) / n_samples
     upper = stats.chi2.ppf(1 - alpha / 2, dof) / n_samples

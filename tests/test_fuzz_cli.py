@@ -929,3 +929,73 @@ def test_estimate_bounds_chunks_and_refuses():
         estimate_run(CalibrationParams(), 10**9)
     with pytest.raises(ValueError, match=r"params: one realization .* about \d+ MB"):
         estimate_run(CalibrationParams(gps_rate=200.0), 2)
+
+
+# --- course-log reader (log-api) ---
+import log_files as lf  # noqa: E402
+
+from kfcal_helpers.coop import cli as coop_cli  # noqa: E402
+
+# (id, build(tmp) -> the --log argument, extra options, words the one stderr line must contain)
+LOG_READER_BAD = [
+    ("fifo ydata", lambda t: lf.folder_with(t, "ydata", lf.fifo), [], ["--log", "ydata.csv is a FIFO", "regular files"]),
+    ("fifo mat", lambda t: lf.fifo(t / "log.mat"), [], ["--log", "log.mat is a FIFO"]),
+    ("ydata link to /dev/zero", lambda t: lf.folder_with(t, "ydata", lambda f: lf.link("/dev/zero", f)), [],
+     ["--log", "a link to /dev/zero", "character device"]),
+    ("mat link to /dev/zero", lambda t: lf.link("/dev/zero", t / "log.mat"), [], ["--log", "character device"]),
+    ("tvec link to /dev/urandom", lambda t: lf.folder_with(t, "tvec", lambda f: lf.link("/dev/urandom", f)), [],
+     ["--log", "character device"]),
+    ("socket Qtrue", lambda t: lf.folder_with(t, "Qtrue", lf.unix_socket), [], ["--log", "Qtrue.csv is a socket"]),
+    ("mat bomb", lambda t: lf.mat_bomb(t / "bomb.mat"), [], ["ydata: 20000000 steps", "MB", "500 MB memory limit"]),
+    ("mat too long", lf.long_mat, [], ["ydata: 168270 steps", "more than the 168269 allowed"]),
+    ("csv too long", lf.long_log, ["--filter", "lkf"], ["ydata: 168270 steps", "MB"]),
+    ("csv too long, every 10", lf.long_log, ["--every", "10"], ["ydata: 168270 steps"]),
+    ("sparse 100 MB ydata", lambda t: lf.folder_with(t, "ydata", lf.sparse_file), [], ["ydata", "is larger than the"]),
+    ("sparse 200 MB mat", lambda t: lf.sparse_file(t / "log.mat", 200_000_000), [], ["--log", "is larger than the"]),
+    ("epoch step below float spacing", lambda t: lf.retimed_log(t, lf.EPOCH + 1e-4 * np.arange(11)), [],
+     ["tvec", "too small for times near 1.7e+09 s"]),
+    ("256-char log name", lambda t: t / ("a" * 256), [], ["--log", "cannot read"]),
+    ("alpha 1e-300", lf.log_folder, ["--alpha", "1e-300"], ["--alpha", "[1e-06, 0.5]"]),
+    ("alpha 1e-7 runs", None, ["--runs", "2", "--alpha", "1e-7"], ["--alpha", "[1e-06, 0.5]"]),
+]
+
+
+@pytest.mark.parametrize("build, extra, words", [r[1:] for r in LOG_READER_BAD], ids=[r[0] for r in LOG_READER_BAD])
+def test_course_log_reader_one_line_exit_2(build, extra, words, tmp_path, capsys, monkeypatch):
+    """Special files, bombs, logs too long for memory, timestamps and significance levels: one line naming
+    what is wrong with the log (or the option), exit 2, before any filter runs."""
+    def no_filter(*a, **k):
+        raise AssertionError("a filter started before the log was checked")
+
+    monkeypatch.setattr(coop_cli, "run_filter", no_filter)
+    monkeypatch.setattr(coop_cli, "truth_model_test", no_filter)
+    argv = ["coop", *(["--log", str(build(tmp_path))] if build is not None else []), *extra]
+    t0 = time.perf_counter()
+    code, out, err = _run(argv, capsys)
+    assert code == 2 and out == "", err
+    _one_error_line(err, "coop")
+    for word in words:
+        assert word in err, (word, err)
+    assert "realizations" not in err
+    assert time.perf_counter() - t0 < 60  # refused before reading (a regression hangs or reads for minutes)
+
+
+@pytest.mark.parametrize("times", [lf.EPOCH + 0.1 * np.arange(21), 1e3 * lf.EPOCH + 100.1 * np.arange(21)],
+                         ids=["epoch s", "epoch ms"])
+def test_course_log_with_epoch_times_runs(times, tmp_path, capsys):
+    """A log timed in Unix-epoch seconds (or ms): its float-rounded steps are a constant step."""
+    code, out, err = _run(["coop", "--log", str(lf.retimed_log(tmp_path, times)), "--json"], capsys)
+    assert code == 0 and err == "", err
+    assert json.loads(out)["steps"] == times.size
+
+
+def test_memory_error_on_a_log_blames_the_log(tmp_path, capsys, monkeypatch):
+    """Out of memory while filtering a log: the advice is about the log, not about realizations."""
+    def no_memory(*a, **k):
+        raise MemoryError
+
+    monkeypatch.setattr(coop_cli, "run_filter", no_memory)
+    code, out, err = _run(["coop", "--log", str(lf.log_folder(tmp_path))], capsys)
+    assert code == 2 and out == ""
+    _one_error_line(err, "coop")
+    assert "not enough memory" in err and "shorter log" in err and "realizations" not in err

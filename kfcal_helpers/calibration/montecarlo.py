@@ -63,7 +63,7 @@ from scipy import stats
 
 from ..consistency import Check, chi2_bounds
 from ..progress import progress_bar as _progress_bar
-from ..validation import require_choice, require_instance, require_int, require_mask, require_probability, require_seed
+from ..validation import require_choice, require_instance, require_int, require_mask, require_seed, require_significance
 from .engine import covariance_sequence, estimate_between_fixes, filter_estimates, filter_model
 from .error_model import ErrorStateModel
 from .filters import run_filterpy
@@ -534,7 +534,7 @@ def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: s
     n_runs = require_int("n_runs", n_runs, minimum=2)
     require_choice("filter", filter, FILTERS)
     require_choice("truth", truth, TRUTH_MODELS)
-    alpha = require_probability("alpha", alpha)
+    alpha = require_significance("alpha", alpha)
     missing = require_mask("missing_fixes", missing_fixes, params.n_gps)
     missing = np.zeros(params.n_gps, bool) if missing is None else missing.copy()
     if (~missing).sum() < 2:

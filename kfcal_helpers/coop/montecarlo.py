@@ -34,7 +34,7 @@ from scipy import stats
 
 from .. import montecarlo as core
 from ..consistency import Check, chi2_bounds, inside_fraction
-from ..validation import require_instance, require_int, require_probability, require_seed
+from ..validation import require_instance, require_int, require_seed, require_significance
 from .batch import run_batch
 from .filters import FilterSetup
 from .model import N_MEAS, N_STATES, CoopParams
@@ -202,7 +202,7 @@ class TruthModelExperiment:
         self.setup = require_instance("setup", setup, FilterSetup)
         self.n_runs = require_int("n_runs", n_runs, minimum=1)
         self.every = require_int("every", every, minimum=1)
-        self.alpha = require_probability("alpha", alpha)
+        self.alpha = require_significance("alpha", alpha)
         self.params = setup.params
 
     def chunk_size(self) -> int:
@@ -301,7 +301,7 @@ def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0,
     would need more than 500 MB (the per-run arrays: 112 kB per run of 1001 steps) or an hour.
     """
     n_runs = require_int("n_runs", n_runs, minimum=1)
-    alpha = require_probability("alpha", alpha)
+    alpha = require_significance("alpha", alpha)
     exp = _experiment(params, n_runs, filter, alpha, every, settings)
     desc = desc or f"{exp.setup.filter.upper()} truth-model test"
     return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=desc,
