@@ -385,3 +385,157 @@ def test_an_interrupted_threaded_run_does_not_hang(monkeypatch):
     done = len(filtered)
     assert calls["n"] >= 3 and done <= calls["n"] + 2 * 2, (done, calls["n"])
     assert done < 50  # not even one chunk of 50 finished: 400 would have been filtered without the stop
+
+
+# --- the refactoring onto the shared core changed no number ------------------------------------
+
+def _old_route(params, n_runs, seed, truth="euler", missing=None):
+    """The drawing and summing of the calibration Monte Carlo before it ran on the shared core, written
+    out from public functions: draw_realizations + error_state_at_fixes + filter_estimates on the core's
+    chunk streams, the same sums in chunk order, the same statistics."""
+    from kfcal_helpers import montecarlo as core
+    from kfcal_helpers.calibration.engine import covariance_sequence, filter_estimates
+    from kfcal_helpers.calibration.montecarlo import chunk_size
+    from kfcal_helpers.calibration.simulation import draw_realizations, error_state_at_fixes
+
+    missing = np.zeros(params.n_gps, bool) if missing is None else missing
+    P, P_prior, S, K = covariance_sequence(params, missing)
+    n_gps, ok = params.n_gps, ~missing
+    e, eb, x, m = np.zeros((n_gps, 3)), np.zeros((n_gps, 3)), np.zeros((n_gps, 3)), np.zeros((n_gps, 9, 9))
+    rr = np.zeros((2 * ok.sum(), 2 * ok.sum()))
+    N = 0
+    for size, rng in core.chunk_generators(chunk_size(params), n_runs, seed):
+        draws = draw_realizations(params, size, rng)
+        dx = error_state_at_fixes(params, draws, truth)
+        dz = dx[..., :2] + draws.eta
+        dz[:, missing] = np.nan
+        x_prior, x_post, y = filter_estimates(params, dz, K, missing)
+        z = np.empty((n_gps, 9, size))
+        np.subtract(dx.transpose(1, 2, 0), x_post.transpose(1, 2, 0), out=z[:, 0:3])
+        np.subtract(dx.transpose(1, 2, 0), x_prior.transpose(1, 2, 0), out=z[:, 3:6])
+        z[:, 6:9] = x_post.transpose(1, 2, 0)
+        s = z.sum(axis=2)
+        part = (s[:, 0:3], s[:, 3:6], s[:, 6:9], z @ z.transpose(0, 2, 1))
+        r = y[:, ok].reshape(size, -1)
+        part_rr = np.einsum("na,nb->ab", r, r)
+        N += size
+        for total, add in zip((e, eb, x, m), part):
+            total += add
+        rr += part_rr
+    e_mean = e / N
+    e_cov = (m[:, 0:3, 0:3] - N * np.einsum("ia,ib->iab", e_mean, e_mean)) / (N - 1)
+    nees = np.einsum("iab,iab->i", np.linalg.inv(P[params.fix_indices]), m[:, 0:3, 0:3]) / N
+    return {"e_mean": e_mean, "e_cov": e_cov, "nees": nees, "rr": rr / N}
+
+
+@pytest.mark.parametrize("case", ["default", "analytic_outage", "generator"])
+def test_the_core_route_equals_the_old_drawing_route_bit_for_bit(case):
+    params, n, seed, kw = P0, 1011, 8, {}
+    if case == "analytic_outage":
+        missing = np.zeros(P0.n_gps, bool)
+        missing[30:60] = True
+        n, seed, kw = 30, 3, {"truth": "analytic", "missing": missing}
+    mc = run_monte_carlo(P0, n, np.random.default_rng(77) if case == "generator" else seed,
+                         truth=kw.get("truth", "euler"), missing_fixes=kw.get("missing"))
+    old = _old_route(params, n, np.random.default_rng(77) if case == "generator" else seed, **kw)
+    for name in ("e_mean", "e_cov", "nees"):
+        assert np.array_equal(getattr(mc, name), old[name]), name
+    ok = ~mc.missing
+    moment = mc.residual_moment[ok][:, :, ok, :].reshape(old["rr"].shape)
+    assert np.array_equal(moment, old["rr"])
+
+
+# Values of the code before the refactoring (commit a0c294c), at full precision: the numbers the
+# notebooks quote come from these routes.  Compared to 1e-12 (another machine's BLAS may round the
+# summed outer products differently in the last bits).
+PINNED = {
+    "default": (P0, 1011, 8, {}, [0.47909206786786096, 0.6351447830019716, 0.5128437062105373,
+                                   0.8169379237921947, 0.6879249632363945, 0.6958800713215174,
+                                   0.6648353212473845], 2.9107537151545007),
+    "analytic_outage_between": (P0, 30, 3, {"truth": "analytic", "between_fixes": True},
+                                [3.8171841645765983, 0.7818935195479368, 0.5923921275453826,
+                                 0.9404504253313312, 0.7215606473369052, 12.492197598847362,
+                                 0.7239752885819429], 12.060293030880626),
+    "generator": (P0, 20, None, {}, [0.5745728454426676, 0.7715052932758845, 0.6040392854915436,
+                                     0.9700211093533742, 0.8515172659205523, 0.47103741037951713,
+                                     0.7746958865103188], 2.9983975839325177),
+}
+PINNED_BETWEEN = {"default": (P0, 1011, 8, [0.6081736874832272, 0.9686609686609686]),
+                  "analytic_outage_between": (P0, 30, 3, [0.7484737684887439, 0.98005698005698])}
+
+
+@pytest.mark.parametrize("case", list(PINNED))
+def test_numbers_equal_those_before_the_core(case):
+    params, n, seed, kw, worst, nees_mean = PINNED[case]
+    if case == "analytic_outage_between":
+        missing = np.zeros(P0.n_gps, bool)
+        missing[30:60] = True
+        kw = {**kw, "missing_fixes": missing}
+    mc = run_monte_carlo(params, n, np.random.default_rng(77) if seed is None else seed, **kw)
+    np.testing.assert_allclose([c.worst for c in mc.checks().values()], worst, rtol=1e-12)
+    np.testing.assert_allclose(mc.nees.mean(), nees_mean, rtol=1e-12)
+
+
+@pytest.mark.parametrize("case", list(PINNED_BETWEEN))
+def test_between_fixes_check_equals_the_one_before_the_core(case):
+    params, n, seed, (worst, inside) = PINNED_BETWEEN[case]
+    kw = {}
+    if case == "analytic_outage_between":
+        missing = np.zeros(P0.n_gps, bool)
+        missing[30:60] = True
+        kw = {"truth": "analytic", "missing_fixes": missing}
+    c = run_monte_carlo(params, n, seed, between_fixes=True, **kw).between_fixes_check()
+    assert c.inside_fraction == inside
+    np.testing.assert_allclose(c.worst, worst, rtol=1e-9)
+
+
+@pytest.mark.parametrize("case", ["euler", "analytic_outage", "mistaken_model", "short_last_period", "long"])
+def test_between_fixes_by_linearity_equals_the_direct_formula(case):
+    """The batch filter's 200 Hz sums (running sums of the IMU noise, by linearity) equal the direct
+    formula of the earlier code, ``e = error_state_full - estimate_between_fixes`` summed over the
+    realizations, to rounding: 1e-12 of the scale of each statistic."""
+    from kfcal_helpers.calibration.engine import estimate_between_fixes
+    from kfcal_helpers.calibration.mistakes import mistaken_model
+    from kfcal_helpers.calibration.simulation import draw_realizations, error_state_full
+
+    params, n, kw = P0, 40, {}
+    if case == "analytic_outage":
+        missing = np.zeros(P0.n_gps, bool)
+        missing[30:60] = True
+        kw = {"truth": "analytic", "missing_fixes": missing}
+    elif case == "mistaken_model":
+        kw = {"model": mistaken_model(P0, "no_propagation")}
+    elif case == "short_last_period":  # 5.1 s at 4 Hz: 5 samples after the last fix
+        params = CalibrationParams(duration=5.1, imu_rate=100.0, gps_rate=4.0)
+    elif case == "long":
+        params, n = CalibrationParams(imu_rate=1000.0, duration=20.0, gps_rate=2.0), 12
+    assert params.n_imu > (params.n_gps - 1) * params.steps_per_fix
+    mc = run_monte_carlo(params, n, 5, between_fixes=True, workers=1, **kw)
+    (size, rng), = chunk_generators_of(params, n, 5)
+    draws = draw_realizations(params, size, rng)
+    truth = kw.get("truth", "euler")
+    # the estimate at the fixes is the Monte Carlo's own (redrawn the same way), then predicted
+    from kfcal_helpers.calibration.engine import covariance_sequence, filter_estimates
+    from kfcal_helpers.calibration.simulation import error_state_at_fixes
+
+    missing = kw.get("missing_fixes", np.zeros(params.n_gps, bool))
+    model = kw.get("model")
+    K = covariance_sequence(params, missing, model).K
+    dx = error_state_at_fixes(params, draws, truth)
+    dz = dx[..., :2] + draws.eta
+    dz[:, missing] = np.nan
+    x_post = filter_estimates(params, dz, K, missing, model)[1]
+    e = error_state_full(params, draws, truth) - estimate_between_fixes(params, x_post, model)
+    mean = e.mean(0)
+    cov = np.einsum("nja,njb->jab", e - mean, e - mean) / (n - 1)
+    sd = np.sqrt(np.einsum("jaa->ja", cov))
+    sd[:, 2] = np.maximum(sd[:, 2], 1e-300)
+    assert np.abs(mc.between.e_mean - mean).max() <= 1e-12 * np.abs(mean).max() + 1e-12 * sd.max()
+    scale = np.maximum(sd[:, :, None] * sd[:, None, :], 1e-12 * sd.max() ** 2)
+    assert np.max(np.abs(mc.between.e_cov - cov) / scale) < 1e-9
+
+
+def chunk_generators_of(params, n, seed):
+    from kfcal_helpers.calibration.montecarlo import chunk_generators
+
+    return chunk_generators(params, n, seed)
