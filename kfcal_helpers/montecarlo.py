@@ -19,7 +19,10 @@ into partial sums (or per-run arrays), how to add those up, and what a chunk cos
 * **Memory and time.**  :func:`estimate` adds up what the experiment says it needs (the fixed part,
   every chunk in flight, the statistics at the end) and refuses, with its estimate, a run whose
   peak exceeds :data:`MEMORY_LIMIT` or whose one-thread time exceeds :data:`MAX_SECONDS`, before
-  any work starts.  Fewer chunks fly at once when more would not fit.
+  any work starts.  Fewer chunks fly at once when more would not fit.  With two or more chunks in
+  flight (on worker threads) the end's statistics are counted on top of them, because memory freed by
+  a worker thread stays with that thread's allocator; one chunk at a time runs in the calling thread
+  and the end reuses its memory (``peak = fixed + max(chunk, final)``).
 * **Progress and cancellation.**  A progress bar over realizations (quiet under tests and CI,
   :mod:`kfcal_helpers.progress`).  An exception in the calling thread while chunks run
   (``KeyboardInterrupt`` from Ctrl-C, or whatever the command line raises on SIGTERM) cancels the
@@ -200,10 +203,13 @@ def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *,
     size = min(chunk, n_runs)
     per_chunk = float(experiment.chunk_bytes(size))
     fixed = float(experiment.fixed_bytes(n_runs))
-    fit = int((MEMORY_LIMIT - fixed) // per_chunk) if per_chunk > 0 else workers
-    in_flight = max(1, min(workers, n_chunks, fit))
     final = float(experiment.final_bytes(n_runs)) + float(extra_bytes)
-    peak = fixed + max(in_flight * per_chunk, final)
+    # Chunks on worker threads: what a worker frees stays with its thread's allocator pool (glibc keeps
+    # an arena per thread), so the last phase, in the calling thread, comes on top of the chunks.  One
+    # chunk at a time runs in the calling thread, whose freed memory the last phase reuses.
+    fit = int((MEMORY_LIMIT - fixed - final) // per_chunk) if per_chunk > 0 else workers
+    in_flight = max(1, min(workers, n_chunks, fit))
+    peak = fixed + (in_flight * per_chunk + final if in_flight > 1 else max(per_chunk, final))
     seconds = float(experiment.seconds(n_runs))
     if peak > MEMORY_LIMIT:
         one = float(experiment.fixed_bytes(1)) + max(float(experiment.chunk_bytes(1)),

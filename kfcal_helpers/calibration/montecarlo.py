@@ -107,10 +107,11 @@ _BASE_BYTES = 130e6
 _FIXED_BYTES_PER_SAMPLE = 100.0
 _SUMS_BYTES_PER_FIX2 = 40.0
 _BYTES_PER_SAMPLE, _BYTES_PER_FIX = 16.0, 400.0
-_BETWEEN_BYTES_PER_SAMPLE = {"batch": 16.0, "filterpy": 80.0}
+_BETWEEN_BYTES_PER_SAMPLE = {"batch": 16.0, "filterpy": 120.0}
 _PARTIAL_BYTES_PER_FIX2 = 72.0
-_STATS_BYTES_PER_FIX2 = 340.0
-_STATS_BYTES_PER_SAMPLE = 400.0
+_STATS_BYTES_PER_FIX2 = 260.0
+_STATS_BYTES_PER_SAMPLE, _STATS_BYTES_PER_BLOCK_SAMPLE, _BLOCK_SAMPLES = 400.0, 700.0, 65536
+_POWERS_BYTES_PER_STEP = 700.0
 _SECONDS_PER_SAMPLE = {"batch": 1.5e-7, "filterpy": 6e-6}
 _SECONDS_PER_FIX2 = 3e-6
 FILTERS = ("batch", "filterpy")  #: the filter codes run_monte_carlo can run
@@ -424,7 +425,7 @@ class _BetweenMoments:
         ll = np.zeros((3, n_gps * r))
         ll[:, 1:n_imu] = self.ll[:, : n_imu - 1]  # sample J reads the running sums at J - 1
         ll = ll.reshape(3, n_gps, r)
-        step = max(1, 65536 // r)  # periods at a time: temporaries of at most about 65536 samples
+        step = max(1, _BLOCK_SAMPLES // r)  # periods at a time: temporaries of at most 65536 + r samples
         for i0 in range(0, n_gps, step):
             i1 = min(n_gps, i0 + step)
             yy = self.yy[i0:i1]
@@ -540,8 +541,8 @@ class CalibrationExperiment:
             return 0.0
         if self.filter == "filterpy":
             return 96.0 * p.n_imu
-        d = 9 if self.given_model is not None else 6  # [e_post, (dx), S_i, 1]
-        return 8.0 * (p.n_gps * d * d + p.n_gps * (2 * d + 3) * max(p.steps_per_fix - 1, 0))
+        d = 9 if self.given_model is not None else 6  # [e_post, (dx), C_i, B_i, 1]
+        return 8.0 * (p.n_gps * d * d + 2 * d * p.n_gps * p.steps_per_fix + 3 * p.n_imu)
 
     def fixed_bytes(self, n_runs: int) -> float:
         """The interpreter, the filter's covariances and the sums of the whole run."""
@@ -558,9 +559,16 @@ class CalibrationExperiment:
 
     def final_bytes(self, n_runs: int) -> float:
         """The statistics of the checks at the end (the pairwise residual statistics; with
-        between_fixes the 200 Hz moments)."""
+        between_fixes the 200 Hz moments, and the temporaries of a block of periods), or the start
+        (the powers of Phi over one GPS period, twice), whichever is larger."""
         p = self.params
-        return _STATS_BYTES_PER_FIX2 * p.n_gps**2 + (_STATS_BYTES_PER_SAMPLE * p.n_imu if self.between else 0.0)
+        r = p.steps_per_fix
+        start = _POWERS_BYTES_PER_STEP * (r + 1)
+        end = _STATS_BYTES_PER_FIX2 * p.n_gps**2
+        if self.between:
+            end += (_STATS_BYTES_PER_SAMPLE * p.n_imu
+                    + _STATS_BYTES_PER_BLOCK_SAMPLE * min(p.n_imu, _BLOCK_SAMPLES + r))
+        return max(start, end)
 
     def seconds(self, n_runs: int) -> float:
         p = self.params
