@@ -112,6 +112,7 @@ _PARTIAL_BYTES_PER_FIX2 = 72.0
 _STATS_BYTES_PER_FIX2 = 260.0
 _STATS_BYTES_PER_SAMPLE, _STATS_BYTES_PER_BLOCK_SAMPLE, _BLOCK_SAMPLES = 400.0, 700.0, 65536
 _POWERS_BYTES_PER_STEP = 700.0
+_ROWS = 32  #: realizations whose 200 Hz running sums are formed at a time (between_fixes, batch filter)
 _SECONDS_PER_SAMPLE = {"batch": 1.5e-7, "filterpy": 6e-6}
 _SECONDS_PER_FIX2 = 3e-6
 FILTERS = ("batch", "filterpy")  #: the filter codes run_monte_carlo can run
@@ -370,47 +371,53 @@ class _BetweenMoments:
     before the fix).  The estimate is ``Phi_f^k x_post_i``, so ``e_J = G_k y_i + M (c, b) + d_J``
     with per-realization numbers ``y_i = [e_post_i, (dx_i if Phi_f != Phi), C_i, B_i]``, fixed matrices
     ``G_k`` and ``M (c, b) = (-dt^2 (b + c/2), -dt c, 0)``.  Kept, summed over realizations: ``[y, 1]
-    [y, 1]^T`` per period (n_gps, D, D), ``[y, 1] (c, b)`` per period and sample (n_gps, D, 2, r) and
-    ``c^2, c b, b^2`` per sample (3, n_imu); the first two moments of ``e`` at every sample follow
-    from them in :meth:`moments`.  Per chunk: two running sums and five sums of products over
-    (n, n_imu) arrays, no (n, n_imu, 3) array.
+    [y, 1]^T`` per period (n_gps, D, D), ``[y, 1] c`` per period and sample (n_gps, D, r; the same with
+    ``b`` follows, as ``b_{ir+q} = B_i + C_i + sum_{q'<q} c_{ir+q'}``) and ``c^2, c b, b^2`` per sample
+    (3, n_imu); the first two moments of ``e`` at every sample follow from them in :meth:`moments`.
+    Per chunk: two running sums and four sums of products over (n, n_imu) arrays, taken a few
+    realizations at a time; no (n, n_imu, 3) array.
     """
 
     def __init__(self, n_gps: int, r: int, n_imu: int, n_vars: int):
         self.n = 0
         self.yy = np.zeros((n_gps, n_vars + 1, n_vars + 1))
-        self.yl = np.zeros((n_gps, n_vars + 1, 2, r))
+        self.yc = np.zeros((n_gps, n_vars + 1, r))
         self.ll = np.zeros((3, n_imu))
 
     def add(self, params: CalibrationParams, w, y):
         """Add one chunk: ``w`` (n, n_imu) its IMU noise (overwritten by its running sum), ``y``
-        (n, n_gps, n_vars - 2) its ``[e_post, (dx)]`` at the fixes."""
+        (n, n_gps, n_vars - 2) its ``[e_post, (dx)]`` at the fixes.  The realizations are taken
+        :data:`_ROWS` at a time, so that each one's running sums are still in the cache when they are
+        multiplied."""
         n, n_gps, r, n_imu = len(w), params.n_gps, params.steps_per_fix, params.n_imu
-        c = np.cumsum(w, axis=1, out=w)  # in place: c_j = sum_{l <= j} w_l
-        b = np.empty_like(c)  # b_j = sum_{m < j} c_m
-        b[:, 0] = 0.0
-        np.cumsum(c[:, :-1], axis=1, out=b[:, 1:])
         fix = params.fix_indices
-        y1 = np.zeros((n, n_gps, y.shape[2] + 3))  # [y, C_i, B_i, 1]; C_0 = B_0 = 0
-        y1[..., :-3] = y
-        y1[:, 1:, -3], y1[:, 1:, -2] = c[:, fix[1:] - 1], b[:, fix[1:] - 1]
-        y1[..., -1] = 1.0
-        yT = np.ascontiguousarray(y1.transpose(1, 2, 0))  # (n_gps, D, n)
-        self.n += n
-        self.yy += yT @ yT.transpose(0, 2, 1)
         nf, last = n_gps - 1, n_imu - (n_gps - 1) * r  # full periods; samples from the last fix on
-        for a, k in ((c, 0), (b, 1)):  # period i, column q: the running sums at j = i r + q
+        b_rows = np.empty((min(n, _ROWS), n_imu))
+        self.n += n
+        for l0 in range(0, n, _ROWS):
+            rows = min(_ROWS, n - l0)
+            c = np.cumsum(w[l0:l0 + rows], axis=1, out=w[l0:l0 + rows])  # in place: c_j = sum_{l <= j} w_l
+            b = b_rows[:rows]  # b_j = sum_{m < j} c_m
+            b[:, 0] = 0.0
+            np.cumsum(c[:, :-1], axis=1, out=b[:, 1:])
+            y1 = np.zeros((rows, n_gps, y.shape[2] + 3))  # [y, C_i, B_i, 1]; C_0 = B_0 = 0
+            y1[..., :-3] = y[l0:l0 + rows]
+            y1[:, 1:, -3], y1[:, 1:, -2] = c[:, fix[1:] - 1], b[:, fix[1:] - 1]
+            y1[..., -1] = 1.0
+            yT = np.ascontiguousarray(y1.transpose(1, 2, 0))  # (n_gps, D, rows)
+            self.yy += yT @ yT.transpose(0, 2, 1)
+            # period i, column q: c at j = i r + q (the sums with b follow from these, see moments)
             if nf > 0:
-                self.yl[:nf, :, k, :] += yT[:nf] @ a[:, : nf * r].reshape(n, nf, r).transpose(1, 0, 2)
-            self.yl[nf, :, k, :last] += yT[nf] @ a[:, nf * r:]
-        self.ll[0] += np.einsum("nj,nj->j", c, c)
-        self.ll[1] += np.einsum("nj,nj->j", c, b)
-        self.ll[2] += np.einsum("nj,nj->j", b, b)
+                self.yc[:nf] += yT[:nf] @ c[:, : nf * r].reshape(rows, nf, r).transpose(1, 0, 2)
+            self.yc[nf, :, :last] += yT[nf] @ c[:, nf * r:]
+            self.ll[0] += np.einsum("nj,nj->j", c, c)
+            self.ll[1] += np.einsum("nj,nj->j", c, b)
+            self.ll[2] += np.einsum("nj,nj->j", b, b)
 
     def combine(self, other: "_BetweenMoments"):
         self.n += other.n
         self.yy += other.yy
-        self.yl += other.yl
+        self.yc += other.yc
         self.ll += other.ll
 
     def moments(self, setup: "_Setup"):
@@ -432,7 +439,12 @@ class _BetweenMoments:
             A1 = np.einsum("kad,id->ika", G, yy[:, :nv, nv])
             A2 = (G[None] @ yy[:, None, :nv, :nv]) @ np.swapaxes(G, 1, 2)[None]
             if r > 1:  # M (c, b) at the samples k >= 1 (column k - 1 of the period)
-                Yc, Yb = self.yl[i0:i1, :, 0, : r - 1], self.yl[i0:i1, :, 1, : r - 1]  # (periods, D, r - 1)
+                Yc = self.yc[i0:i1, :, : r - 1]  # (periods, D, r - 1)
+                # b_{ir+q} = B_i + C_i + sum_{q' < q} c_{ir+q'}, and C_i, B_i are columns of y
+                Yb = np.empty_like(Yc)
+                Yb[..., 0] = 0.0
+                np.cumsum(Yc[..., :-1], axis=2, out=Yb[..., 1:])
+                Yb += (yy[:, :, nv - 1] + yy[:, :, nv - 2])[:, :, None]
                 Yp = -dt * dt * (Yb + 0.5 * Yc)  # sum [y, 1] l_p
                 Yv = -dt * Yc  # sum [y, 1] l_v
                 A1[:, 1:, 0] += Yp[:, nv]
@@ -542,7 +554,7 @@ class CalibrationExperiment:
         if self.filter == "filterpy":
             return 96.0 * p.n_imu
         d = 9 if self.given_model is not None else 6  # [e_post, (dx), C_i, B_i, 1]
-        return 8.0 * (p.n_gps * d * d + 2 * d * p.n_gps * p.steps_per_fix + 3 * p.n_imu)
+        return 8.0 * (p.n_gps * d * d + d * p.n_gps * p.steps_per_fix + 3 * p.n_imu)
 
     def fixed_bytes(self, n_runs: int) -> float:
         """The interpreter, the filter's covariances and the sums of the whole run."""
