@@ -171,6 +171,48 @@ def test_cli_json_has_the_between_fixes_check(capsys):
     assert c["passed"] is True and 0.0 <= c["inside_fraction"] <= 1.0 and c["worst"] <= 1.0
 
 
+def _cli_checks(argv, capsys):
+    """{check: worst} printed by calibrate as a table and as JSON, and the rest of the output."""
+    import json
+
+    from kfcal_helpers.cli import main
+
+    assert main(["calibrate", *argv]) == 0
+    table = capsys.readouterr().out
+    rows = {}
+    for line in table.splitlines():
+        words = line.split()
+        if len(words) == 4 and words[3] in ("pass", "FAIL"):
+            rows[words[0]] = float(words[2])
+    assert main(["calibrate", *argv, "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    return rows, {name: c["worst"] for name, c in d["checks"].items()}, table, d
+
+
+def test_cli_table_and_json_show_the_same_checks(capsys):
+    rows, js, table, d = _cli_checks(["--runs", "60", "--seed", "2", "--truth", "analytic"], capsys)
+    assert list(rows) == list(js) == [*CHECK_NAMES, "between_fixes"]
+    assert all(f"{js[name]:.2f}" == f"{rows[name]:.2f}" for name in rows)
+    assert "skipped_checks" not in d and "not run" not in table
+
+
+def test_cli_says_in_both_outputs_when_between_fixes_does_not_fit(capsys, monkeypatch):
+    """A run that fits only without the 200 Hz sums runs without them, and both outputs say why."""
+    from kfcal_helpers import montecarlo as core
+    from kfcal_helpers.calibration.cli import output_bytes
+    from kfcal_helpers.calibration.montecarlo import estimate_run
+
+    params = CalibrationParams(imu_rate=2000.0, duration=5.0)
+    without = estimate_run(params, 20, extra_bytes=output_bytes(params))[0]
+    with_between = estimate_run(params, 20, between_fixes=True, extra_bytes=output_bytes(params, between_fixes=True))[0]
+    assert without < with_between
+    monkeypatch.setattr(core, "MEMORY_LIMIT", (without + with_between) / 2)
+    rows, js, table, d = _cli_checks(["--runs", "20", "--imu-rate", "2000", "--duration", "5"], capsys)
+    assert list(rows) == list(js) == list(CHECK_NAMES)
+    assert "between_fixes: not run: its 200 Hz sums over 10001 IMU samples" in table
+    assert d["skipped_checks"]["between_fixes"].startswith("not run: its 200 Hz sums over 10001 IMU samples")
+
+
 @pytest.mark.parametrize("n_runs", [10, 40])
 def test_residual_correlation_band_has_its_level(n_runs):
     """The residual_independence band, fed independent zero-mean Gaussian residuals, rejects a share
