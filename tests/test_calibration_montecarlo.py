@@ -328,6 +328,7 @@ def test_chunks_in_flight_are_bounded_by_memory():
     long = CalibrationParams(imu_rate=1000.0, duration=60.0)
     assert chunks_in_flight(long, 1000, workers=2, between_fixes=True) == 2
     assert chunks_in_flight(long, 1000, workers=2, between_fixes=True, filter="filterpy") == 1
+    assert chunks_in_flight(long, 1000, workers=2, filter="filterpy") == 2
     for engine in ("batch", "filterpy"):
         assert estimate_run(long, 100, engine, workers=2, between_fixes=True)[0] <= MEMORY_LIMIT
 
