@@ -1,6 +1,86 @@
-"""Test-session settings shared by the unit tests and the notebooks run under nbval."""
+"""Test-session settings shared by the unit tests and the notebooks run under nbval, and how
+pytest-xdist groups the test files (files sharing a session fixture run on one worker)."""
 
+import atexit
 import os
+import shutil
+import tempfile
+import uuid
+
+import pytest
 
 # Notebooks run under nbval inherit this environment: no progress bars.
 os.environ["KFCAL_QUIET"] = "1"
+
+
+_SOCKETS = []  # the folder of this process's kernel sockets, made when the first kernel manager needs it
+
+
+def over_ipc(manager_class):
+    """A subclass of the jupyter_client kernel manager class ``manager_class`` whose kernels listen on
+    Unix sockets (IPC) under a path no other kernel uses, instead of TCP ports; ``manager_class`` itself
+    on Windows, where zmq has no IPC transport.
+
+    Over TCP, jupyter_client picks a kernel's five ports by binding port 0 and closing the socket;
+    the kernel binds them when it has started, a second or more later on a busy machine.  A port
+    taken meanwhile by any other process (another xdist worker's kernel, another test run) makes the
+    kernel exit at once (``ZMQError: Address already in use``, on its stderr, which nbval discards),
+    and nbval reports "Kernel died before replying to kernel_info".  Over IPC there is nothing to
+    race for.
+    """
+    if os.name == "nt":
+        return manager_class
+
+    def __init__(self, **kwargs):
+        if not _SOCKETS:
+            _SOCKETS.append(tempfile.mkdtemp(prefix="kfcal-kernels-"))  # short: a socket path has ~100 bytes
+            atexit.register(shutil.rmtree, _SOCKETS[0], ignore_errors=True)
+        kwargs.setdefault("transport", "ipc")
+        kwargs.setdefault("ip", os.path.join(_SOCKETS[0], uuid.uuid4().hex[:12]))  # sockets <ip>-1 .. <ip>-5
+        manager_class.__init__(self, **kwargs)
+
+    return type(f"IPC{manager_class.__name__}", (manager_class,), {"__init__": __init__})
+
+
+def _notebook_kernels_over_ipc():
+    """nbval's notebook kernels over IPC (see :func:`over_ipc`)."""
+    try:
+        import nbval.kernel
+    except ImportError:  # nbval not installed: no notebooks to run
+        return
+    nbval.kernel.KernelManager = over_ipc(nbval.kernel.KernelManager)  # what start_new_kernel instantiates
+
+
+_notebook_kernels_over_ipc()
+
+
+@pytest.fixture(scope="session")
+def kernel_manager_class():
+    """The kernel manager class for tests that run cells through nbclient: its async one over IPC,
+    like nbval's kernels (:func:`over_ipc`)."""
+    from jupyter_client import AsyncKernelManager
+
+    return over_ipc(AsyncKernelManager)
+
+
+#: test files that share a session fixture of tests/conftest.py, by the work unit they form: pytest-xdist
+#: (``--dist loadfile``) gives each unit to one worker, so the fixture is computed once per run
+SHARED_SCOPES = {
+    "tests/test_mistakes.py": "mistakes table",
+    "tests/test_calibration_mistakes.py": "mistakes table",
+    "tests/test_coop_mistakes.py": "mistakes table",
+}
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadfile`` with the files of :data:`SHARED_SCOPES` joined into one work unit each."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    class SharedFixtureScheduling(LoadFileScheduling):
+        def _split_scope(self, nodeid):
+            file = super()._split_scope(nodeid)
+            return SHARED_SCOPES.get(file, file)
+
+    return SharedFixtureScheduling(config, log)

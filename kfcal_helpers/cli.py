@@ -10,11 +10,14 @@ Whatever a user types, the command ends in one of these ways, never in a traceba
 * exit 2 -- bad input: one line ``python -m kfcal_helpers COMMAND: error: ...`` on stderr naming the
   option in its command-line spelling and what is allowed (argparse errors, every ``ValueError`` of
   the library, an unreadable or unwritable file, not enough memory);
-* exit 130 -- interrupted (Ctrl-C): one line ``...: interrupted`` on stderr;
-* exit 141 -- stdout was closed (e.g. ``| head -1``): nothing more is printed.
+* exit 130 -- interrupted (Ctrl-C, SIGINT): one line ``...: interrupted`` on stderr, on its own line;
+* exit 143 -- terminated (SIGTERM): one line ``...: terminated`` on stderr;
+* exit 141 -- stdout was closed while printing (e.g. ``| head -1``): nothing more is printed.
 
 Output files are written under a temporary name and renamed when complete, so an interrupted
-command leaves no partial file behind.
+command leaves no partial file behind.  A stream closed from the start (``>&-``) discards what would
+be printed there; text prints in any encoding (ASCII fallbacks such as ``sigma``, ``+/-``); an
+unwritable matplotlib config directory is replaced by a private one (:mod:`kfcal_helpers.process`).
 """
 
 from __future__ import annotations
@@ -22,20 +25,18 @@ from __future__ import annotations
 import argparse
 import os
 import re
-import signal
 import sys
-import threading
 import warnings
 
-from .output import PARTIAL_FILES, dumps_json
+from . import process
+from .output import dumps_json
+from .process import EXIT_INTERRUPTED, EXIT_TERMINATED, PROG
 
-__all__ = ["main", "OneLineParser", "dumps_json", "EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_BROKEN_PIPE"]
+__all__ = ["main", "OneLineParser", "dumps_json", "EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_TERMINATED",
+           "EXIT_BROKEN_PIPE"]
 
 EXIT_USAGE = 2  #: bad input
-EXIT_INTERRUPTED = 130  #: Ctrl-C (128 + SIGINT)
 EXIT_BROKEN_PIPE = 141  #: stdout closed (128 + SIGPIPE)
-
-PROG = "python -m kfcal_helpers"
 
 # values that start with "-" but are not options: negative numbers (also 1e5 form), -inf, -nan,
 # and outage windows such as -5:3, so that "--omega -inf" and "--outage -5:3" reach the checks
@@ -93,46 +94,18 @@ def _quiet_stdout() -> None:
         pass
 
 
-def _remove_partial_files() -> None:
-    for path in list(PARTIAL_FILES):
-        try:
-            os.unlink(path)
-        except OSError:
-            pass
-
-
-def _install_sigint(state: dict):
-    """While the command runs in the main thread, Ctrl-C prints one line, removes the temporary file
-    being written and ends the process with status 130 at once: a KeyboardInterrupt raised inside a
-    library callback could otherwise be swallowed ("Exception ignored in ...") and the work go on.
-    Returns the previous handler (None if none was installed)."""
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    previous = signal.getsignal(signal.SIGINT)
-    if previous is not signal.default_int_handler:  # someone else (a notebook kernel, a test) handles it
-        return None
-
-    def on_sigint(signum, frame):
-        _error_line(f"{state['command']}: interrupted")
-        _remove_partial_files()
-        os._exit(EXIT_INTERRUPTED)
-
-    signal.signal(signal.SIGINT, on_sigint)
-    return previous
-
-
 def main(argv=None) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``), run the sub-command, return the exit status."""
     words = sys.argv[1:] if argv is None else list(argv)
-    # the command's name before the (slow) imports of argument parsing, for a Ctrl-C during them
-    known = words[0] if words and re.fullmatch(r"[a-z][a-z_-]*", words[0]) else None
-    state = {"command": f"{PROG} {known}" if known else PROG}
-    previous = _install_sigint(state)
+    # the command's name before the (slow) imports of argument parsing, for a signal during them
+    state = {"command": process.command_name(words)}
+    installed = process.install_signal_handlers(state["command"])
     try:
-        return _main(argv, state)
+        with process.standard_streams():
+            process.use_writable_matplotlib_config()
+            return _main(argv, state)
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
+        process.restore_signal_handlers(installed)
 
 
 def _main(argv, state: dict) -> int:
@@ -144,6 +117,7 @@ def _main(argv, state: dict) -> int:
         except SystemExit as exc:  # argparse: --help (0) or a usage error (2, already printed)
             return exc.code if isinstance(exc.code, int) else EXIT_USAGE
         command = state["command"] = f"{PROG} {args.command}"
+        process.install_signal_handlers(command)  # names the command (nothing new is installed)
         with warnings.catch_warnings():
             # a numerical warning would mean NaN or infinity in the output: stop with one line instead
             warnings.simplefilter("error", RuntimeWarning)
@@ -151,7 +125,7 @@ def _main(argv, state: dict) -> int:
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's final flush
         return code
     except KeyboardInterrupt:
-        _remove_partial_files()
+        process.remove_partial_files()
         _error_line(f"{command}: interrupted")
         return EXIT_INTERRUPTED
     except BrokenPipeError:
@@ -173,6 +147,9 @@ def _main(argv, state: dict) -> int:
 
 
 def _error_line(text: str) -> None:
+    """``text`` as one line on stderr; nothing if stderr is closed (never on stdout)."""
+    if sys.stderr is None:
+        return
     try:
         print(text, file=sys.stderr, flush=True)
     except (OSError, ValueError):

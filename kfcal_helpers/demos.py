@@ -5,8 +5,9 @@ problem's controls beside the image and redraws on every change.
 Each problem's ``demos`` module (``kfcal_helpers.calibration.demos``, ``kfcal_helpers.coop.demos``)
 splits its demo into a *compute* function, which returns plain arrays in a small dataclass, and a
 figure class built once (:func:`new_figure`) whose ``update(demo)`` only replaces the data, so a redraw
-costs one render.  A demo result may name in ``finite_fields`` (a class attribute) the arrays that
-must be finite before it is drawn.  A setting that cannot be computed (e.g. a covariance losing
+costs one render; a figure class may also offer ``draw()``, which renders its figure faster onto its
+canvas (e.g. with a :class:`CachedBackground`), and :class:`LiveDemo` then uses it.  A demo result may
+name in ``finite_fields`` (a class attribute) the arrays that must be finite before it is drawn.  A setting that cannot be computed (e.g. a covariance losing
 positive definiteness) shows a one-line message in the image's place, never a traceback.
 """
 
@@ -17,10 +18,11 @@ import io
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-__all__ = ["new_figure", "figure_png", "CONTROLS_WIDTH", "DEMO_FAILURES", "require_finite_demo", "failure_message",
-           "describe_controls", "LiveDemo"]
+__all__ = ["new_figure", "figure_png", "CachedBackground", "CONTROLS_WIDTH", "DEMO_FAILURES", "require_finite_demo",
+           "failure_message", "describe_controls", "LiveDemo"]
 
 
 def new_figure(figure, figsize):
@@ -36,20 +38,135 @@ def new_figure(figure, figsize):
     return figure
 
 
-def figure_png(fig) -> bytes:
+def figure_png(fig, *, drawn: bool = False) -> bytes:
     """The figure rendered once by Agg and encoded as an RGB PNG with light compression, for an
     ``ipywidgets.Image`` (about twice as fast as ``savefig``, which renders again for the tight
-    bounding box of this collection's style)."""
+    bounding box of this collection's style).  ``drawn=True``: the figure's Agg canvas already holds
+    the current rendering (e.g. from :meth:`CachedBackground.draw`), so only the encoding is done."""
     from PIL import Image
 
     if not isinstance(fig, Figure):
         raise ValueError(f"fig must be a matplotlib Figure, got {type(fig).__name__}")
+    if drawn and not isinstance(fig.canvas, FigureCanvasAgg):
+        raise ValueError("drawn=True needs a figure with an Agg canvas that has been drawn")
     canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
-    canvas.draw()
+    if not drawn:
+        canvas.draw()
     rgba = Image.frombuffer("RGBA", canvas.get_width_height(), canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
     buf = io.BytesIO()
     rgba.convert("RGB").save(buf, format="png", compress_level=1)
     return buf.getvalue()
+
+
+def _draw_order(fig):
+    """Every artist of ``fig`` in the order ``Figure.draw`` renders it, two levels deep: the figure's
+    patch, then its children by zorder, each Axes as its patch followed by its children by zorder
+    (matplotlib's own order: a stable sort of ``get_children()``).  Yields ``(axes or None, artist)``."""
+    yield None, fig.patch
+    for child in sorted((c for c in fig.get_children() if c is not fig.patch), key=lambda c: c.get_zorder()):
+        if isinstance(child, Axes):
+            if not child.get_visible():
+                continue
+            if child.axison and child.get_frame_on():
+                yield child, child.patch
+            skip = {child.patch}
+            if not (child.axison and child.get_frame_on()):
+                skip.update(child.spines.values())
+            if not child.axison:
+                skip.update((child.xaxis, child.yaxis))
+            for a in sorted((a for a in child.get_children() if a not in skip), key=lambda a: a.get_zorder()):
+                yield child, a
+        else:
+            yield None, child
+
+
+class CachedBackground:
+    """Fast redraws of a figure whose data-independent part is rendered once (blitting on Agg).
+
+    ``static``: artists a redraw does not change, e.g. the x axes (ticks, grid lines, tick labels,
+    label) of panels whose time axis stays the same; with the figure's and the Axes' backgrounds they
+    are rendered once into a background.  :meth:`draw` puts the background back and renders every
+    other artist, in the order of a full draw, so its image is the one ``fig.canvas.draw()`` gives
+    (``tests/test_demos.py`` compares them pixel for pixel).  ``key()`` (optional) returns what the
+    static artists depend on (e.g. the x limits); the background is rendered again when it, the
+    figure's size or its dpi change.
+
+    Each static artist must come before every other artist of its Axes in the drawing order (a
+    lower zorder, or the same zorder and earlier in ``get_children()``), else ValueError.  A redraw
+    in which an Axes with a title shows a y-axis offset text (e.g. ``1e-5``), or has a left or right
+    title, is done in full: matplotlib then places the titles, which only its own draw does.
+    """
+
+    def __init__(self, fig, static, key=None):
+        if not isinstance(fig, Figure):
+            raise ValueError(f"fig must be a matplotlib Figure, got {type(fig).__name__}")
+        if key is not None and not callable(key):
+            raise ValueError(f"key must be None or callable (-> what the static artists depend on), "
+                             f"got {type(key).__name__}")
+        if not isinstance(fig.canvas, FigureCanvasAgg):
+            FigureCanvasAgg(fig)
+        self.fig, self.key = fig, key
+        self.static = [fig.patch, *(ax.patch for ax in fig.axes), *static]
+        self._static_ids = {id(a) for a in self.static}
+        self._background = None
+        self._background_key = None
+        self.full_draws = 0  #: redraws done in full (the first one, a new key, a y offset text beside a title)
+
+    def _dynamic(self):
+        """The artists drawn on every redraw, in drawing order; checks that static ones come first."""
+        order, seen_dynamic = [], set()
+        for ax, a in _draw_order(self.fig):
+            if id(a) in self._static_ids:
+                if ax is not None and ax in seen_dynamic:
+                    raise ValueError(f"static artist {a!r} is drawn after a changing artist of its Axes: "
+                                     f"give it a lower zorder")
+            else:
+                order.append(a)
+                seen_dynamic.add(ax)
+        return order
+
+    def _offset_beside_title(self) -> bool:
+        for ax in self.fig.axes:
+            if ax.get_title("left") or ax.get_title("right"):
+                return True  # only the centre title is public (ax.title): let matplotlib place the others
+            if not ax.get_title():
+                continue
+            if ax.yaxis.get_visible() and ax.yaxis.offsetText.get_visible():
+                fmt = ax.yaxis.get_major_formatter()
+                fmt.set_locs(ax.yaxis.get_majorticklocs())
+                if fmt.get_offset():
+                    return True
+        return False
+
+    def draw(self):
+        """Render the figure onto its Agg canvas; returns the Figure (then ``figure_png(fig, drawn=True)``)."""
+        canvas = self.fig.canvas
+        dynamic = self._dynamic()
+        key = (canvas.get_width_height(), self.fig.dpi, None if self.key is None else self.key())
+        if self._offset_beside_title():
+            self.full_draws += 1
+            canvas.draw()
+            return self.fig
+        if self._background is None or key != self._background_key:
+            self.full_draws += 1
+            hidden = [a for a in dynamic if not a.get_animated()]
+            for a in hidden:  # animated artists are left out of a draw: render the static part alone
+                a.set_animated(True)
+            try:
+                canvas.draw()
+            finally:
+                for a in hidden:
+                    a.set_animated(False)
+            self._background, self._background_key = canvas.copy_from_bbox(self.fig.bbox), key
+        else:
+            canvas.restore_region(self._background)
+        renderer = canvas.get_renderer()
+        for ax in self.fig.axes:
+            ax.apply_aspect()
+            ax.title.set_position((ax.title.get_position()[0], 1.0))  # where a full draw puts it
+        for a in dynamic:
+            a.draw(renderer)
+        return self.fig
 
 
 #: width of the controls' column
@@ -169,7 +286,9 @@ class LiveDemo:
                 if demo is None:
                     return self._message_png(values, self.empty), self.empty, False
                 require_finite_demo(demo)
-                png = figure_png(self.view.update(demo))
+                fig = self.view.update(demo)
+                fast = getattr(self.view, "draw", None)
+                png = figure_png(fast(), drawn=True) if callable(fast) else figure_png(fig)
         except DEMO_FAILURES as error:
             text = failure_message(error)
             return self._message_png(values, text), text + (f"; {self.hint}" if self.hint else ""), False

@@ -1,4 +1,4 @@
-"""Lecture figures of every course problem, written as slide-ready files.
+"""The ``figures`` command: the lecture figures of every course problem, written as slide-ready files.
 
 ``python -m kfcal_helpers figures DIR [--svg] [--only NAME ...] [--list]`` writes every lecture
 figure as ``DIR/<name>.png`` (1280 x 720 px: ``SLIDE_SIZE`` at ``SLIDE_DPI``), and also
@@ -7,19 +7,19 @@ figure as ``DIR/<name>.png`` (1280 x 720 px: ``SLIDE_SIZE`` at ``SLIDE_DPI``), a
 The registry is the problems' own: each problem of :data:`kfcal_helpers.problems.PROBLEMS` lists its
 :class:`~kfcal_helpers.registry.LectureFigure` entries (file stem, one-line description,
 ``make(data)``) in lecture order, and ``figure_data()``, its results computed once, lazily and
-seeded.  :func:`all_figures` joins them in problem order.  The figures are drawn and saved inside
-``matplotlib.rc_context(style_params("slides"))``, so the caller's rcParams are unchanged, and every
-figure is closed after saving.
+seeded.  :func:`all_figures` joins them in problem order.  The drawing and saving is the shared
+:mod:`kfcal_helpers.slides` (which the problems' own code uses, e.g. ``calibrate --figures``); this
+module reads the problem list, so imports point one way: figures -> problems -> problem code -> slides.
 """
 
 from __future__ import annotations
 
-import os
-import sys
 from pathlib import Path
 
+from . import problems, slides
+from .output import path_text
 from .registry import LectureFigure
-from .style import SLIDE_DPI, style_params
+from .slides import check_directory, save_atomic, use_agg_backend
 from .validation import require_choice
 
 __all__ = ["LectureFigure", "all_figures", "check_directory", "save_atomic", "save_figures", "write_figures",
@@ -28,8 +28,6 @@ __all__ = ["LectureFigure", "all_figures", "check_directory", "save_atomic", "sa
 
 def _registry() -> dict:
     """``{figure name: (problem, LectureFigure)}`` over every problem, in problem order."""
-    from . import problems
-
     out = {}
     for problem in problems.PROBLEMS:
         for fig in problem.figures:
@@ -43,51 +41,6 @@ def _registry() -> dict:
 def all_figures() -> tuple:
     """Every problem's lecture figures (LectureFigure), in problem order, then lecture order."""
     return tuple(fig for _, fig in _registry().values())
-
-
-# ---------------------------------------------------------------------------
-# Writing
-def check_directory(directory, argname: str = "directory") -> Path:
-    """``directory`` as a Path; ValueError naming ``argname`` unless it is a non-empty path that is
-    an existing writable directory, or can be created (its nearest existing ancestor is a writable
-    directory).  Nothing is created here: the callers check before their long work starts."""
-    if isinstance(directory, bool) or not isinstance(directory, (str, Path)) or str(directory) == "":
-        raise ValueError(f"{argname} must be a directory path, got {directory!r}")
-    path = Path(directory)
-    if path.exists() and not path.is_dir():
-        raise ValueError(f"{argname} must be a directory (existing or to create), got the existing file {str(path)!r}")
-    existing = path.absolute()
-    while not existing.exists():
-        existing = existing.parent
-    if not existing.is_dir():
-        raise ValueError(f"{argname}: cannot create {str(path)!r}, {str(existing)!r} is a file")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise ValueError(f"{argname}: cannot write into {str(existing)!r} (permission denied)")
-    return path
-
-
-def save_atomic(fig, out: Path, fmt: str, dpi: float, argname: str = "directory") -> Path:
-    """Save ``fig`` to ``out`` under a temporary name in the same directory, then rename it, so an
-    interrupted or failed save leaves no partial file (ValueError naming ``argname`` if the file
-    cannot be written)."""
-    from .output import PARTIAL_FILES
-
-    out = Path(out)
-    tmp = out.with_name(f".{out.name}.{os.getpid()}.part")
-    PARTIAL_FILES.add(str(tmp))  # removed by the command line's Ctrl-C handler
-    try:
-        fig.savefig(tmp, format=fmt, dpi=dpi)
-        os.replace(tmp, out)
-    except OSError as exc:
-        raise ValueError(f"{argname}: cannot write {str(out)!r}: {exc.strerror or exc}") from None
-    finally:
-        PARTIAL_FILES.discard(str(tmp))
-        if tmp.exists():
-            try:
-                tmp.unlink()
-            except OSError:
-                pass
-    return out
 
 
 def _select(names, argname: str) -> tuple:
@@ -108,45 +61,25 @@ def _select(names, argname: str) -> tuple:
 
 
 def save_figures(figures, directory, data=None, svg: bool = False, argname: str = "directory") -> list[Path]:
-    """Draw ``figures`` (LectureFigure entries) in the slides style and save each as
-    ``directory/<name>.png`` (and ``.svg`` when ``svg``) at SLIDE_DPI, uncropped, so a PNG is
-    SLIDE_SIZE x SLIDE_DPI pixels (1280 x 720); closes every figure; returns the paths written.
-
-    data : what every ``make(data)`` gets (a problem's figure data, when all the figures are that
-        problem's); default: each figure's own problem's ``figure_data()``, made once per problem.
-    argname : names ``directory`` in errors.
-    """
-    import matplotlib
-    import matplotlib.pyplot as plt
-
-    path = check_directory(directory, argname)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ValueError(f"{argname}: cannot create directory {str(path)!r}: {exc.strerror}") from None
-    owners = {name: problem for name, (problem, _) in _registry().items()} if data is None else {}
+    """:func:`kfcal_helpers.slides.save_figures` of ``figures``, drawn from ``data`` when given, else
+    each from its own problem's ``figure_data()`` (made once per problem, ValueError if a figure is
+    not registered)."""
+    if data is not None:
+        return slides.save_figures(figures, directory, data, svg=svg, argname=argname)
+    owners = {name: problem for name, (problem, _) in _registry().items()}
     made = {}
-    formats = ("png", "svg") if svg else ("png",)
-    written = []
-    # "standard": the whole canvas, not the style's tight crop, so every PNG is exactly the slide size
-    with matplotlib.rc_context({**style_params("slides"), "savefig.bbox": "standard"}):
-        for entry in figures:
-            if data is None:
-                problem = owners.get(entry.name)
-                if problem is None or problem.figure_data is None:
-                    raise ValueError(f"figures: {entry.name!r} is not a registered figure with figure data; "
-                                     "pass data=")
-                if problem.name not in made:
-                    made[problem.name] = problem.figure_data()
-                fig = entry.make(made[problem.name])
-            else:
-                fig = entry.make(data)
-            try:
-                for fmt in formats:
-                    written.append(save_atomic(fig, path / f"{entry.name}.{fmt}", fmt, SLIDE_DPI, argname))
-            finally:
-                plt.close(fig)
-    return written
+
+    def data_for(entry):
+        problem = owners[entry.name]
+        if problem.name not in made:
+            made[problem.name] = problem.figure_data()
+        return made[problem.name]
+
+    figures = tuple(figures)
+    for entry in figures:  # before anything is drawn or written
+        if owners.get(entry.name) is None or owners[entry.name].figure_data is None:
+            raise ValueError(f"figures: {entry.name!r} is not a registered figure with figure data; pass data=")
+    return slides.save_figures(figures, directory, svg=svg, argname=argname, data_for=data_for)
 
 
 def write_figures(directory, svg: bool = False, names=None, data=None) -> list[Path]:
@@ -174,15 +107,6 @@ def write_figures(directory, svg: bool = False, names=None, data=None) -> list[P
 
 # ---------------------------------------------------------------------------
 # Command line
-def use_agg_backend() -> None:
-    """Select matplotlib's Agg backend (files only, no display) unless pyplot is already in use,
-    as in a notebook, whose backend is left alone.  For the command-line entry points."""
-    if "matplotlib.pyplot" not in sys.modules:
-        import matplotlib
-
-        matplotlib.use("Agg")
-
-
 def add_parser(subparsers):
     """Register ``figures`` on an argparse sub-parsers object."""
     p = subparsers.add_parser("figures", help="write the lecture figures of every problem (PNG, optionally SVG)",
@@ -206,8 +130,9 @@ def run(args) -> int:
         return 0
     if args.directory is None:
         raise ValueError("DIR is required (or give --list)")
-    check_directory(args.directory, "DIR")
+    path = check_directory(args.directory, "DIR")
+    slides.check_targets(path, [f.name for f in selected], args.svg, "DIR")
     use_agg_backend()
     for path in save_figures(selected, args.directory, svg=args.svg, argname="DIR"):
-        print(path)
+        print(path_text(path))
     return 0

@@ -1,15 +1,16 @@
 """What the command line writes, shared by every sub-command: strict JSON, and the registry of
-files being written (removed by the command line's Ctrl-C handler)."""
+files being written
+(:data:`kfcal_helpers.process.PARTIAL_FILES`, removed by the command line's signal handler), and a
+check that a text can be printed."""
 
 from __future__ import annotations
 
 import json
 import math
 
-__all__ = ["dumps_json", "PARTIAL_FILES"]
+from .process import PARTIAL_FILES
 
-#: temporary files being written (see kfcal_helpers.figures.save_atomic), removed on Ctrl-C
-PARTIAL_FILES: set = set()
+__all__ = ["dumps_json", "PARTIAL_FILES", "require_printable", "path_text"]
 
 
 def _strict(value):
@@ -25,3 +26,45 @@ def _strict(value):
 def dumps_json(obj) -> str:
     """``obj`` as strict JSON (``allow_nan=False``): a non-finite float (NaN, infinity) becomes null."""
     return json.dumps(_strict(obj), allow_nan=False)
+
+
+def require_printable(name: str, text: str, stream=None) -> str:
+    """``text`` if ``stream`` (default ``sys.stdout``) can write it in its encoding and error setting,
+    else ValueError naming ``name``; a command checks the lines it will print before it writes files."""
+    import sys
+
+    stream = sys.stdout if stream is None else stream
+    encoding = getattr(stream, "encoding", None)
+    if stream is None or not encoding:
+        return text
+    try:
+        text.encode(encoding, getattr(stream, "errors", None) or "strict")
+    except (UnicodeError, LookupError) as exc:
+        raise ValueError(f"{name}: {text!r} cannot be printed in the output's encoding {encoding} ({exc.reason}); "
+                         "set PYTHONIOENCODING=utf-8") from None
+    return text
+
+
+def path_text(path, stream=None) -> str:
+    """``path`` as text to print on ``stream`` (default ``sys.stdout``): each character the stream's
+    encoding lacks as a backslash escape (``\\xe9``, ``\\u03c3``), never a look-alike, so the printed
+    path is unambiguous in any encoding; a file name's undecodable bytes (surrogate escapes) are kept,
+    to be written back as those bytes."""
+    import sys
+
+    text = str(path)
+    stream = sys.stdout if stream is None else stream
+    encoding = getattr(stream, "encoding", None) or "utf-8"
+    out = []
+    for ch in text:
+        if 0xDC80 <= ord(ch) <= 0xDCFF:
+            out.append(ch)
+            continue
+        try:
+            ch.encode(encoding)
+            out.append(ch)
+        except UnicodeEncodeError:
+            out.append(ch.encode("ascii", "backslashreplace").decode("ascii"))
+        except LookupError:
+            return text
+    return "".join(out)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import os
 
+from .process import OPEN_BARS
+
 __all__ = ["progress_enabled", "progress", "progress_bar"]
 
 
@@ -28,7 +30,15 @@ def progress(iterable, total: int | None = None, desc: str | None = None, enable
         return iterable
     from tqdm.auto import tqdm
 
-    return tqdm(iterable, total=total, desc=desc, leave=False)
+    return _shown(tqdm(iterable, total=total, desc=desc, leave=False))
+
+
+def _shown(bar):
+    """Register ``bar`` as on the screen (the command line's signal handler then starts its line on
+    a new line); closed bars are forgotten."""
+    OPEN_BARS[:] = [b for b in OPEN_BARS if not getattr(b, "disable", True)]
+    OPEN_BARS.append(bar)
+    return bar
 
 
 class _NoBar:
@@ -51,4 +61,4 @@ def progress_bar(total: int, desc: str | None = None, enabled: bool | None = Non
         return _NoBar()
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, desc=desc, leave=False, mininterval=0.5)
+    return _shown(tqdm(total=total, desc=desc, leave=False, mininterval=0.5))

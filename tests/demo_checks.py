@@ -24,3 +24,18 @@ def check_render(live, values) -> bool:
     if not ok:
         assert describe_controls(live.controls, values) in live.message_fig.get_suptitle()
     return ok
+
+
+def fast_draw_is_full_draw(view) -> bool:
+    """The view's ``draw()`` (the kept background and the changed artists) gives the image of a full
+    ``fig.canvas.draw()``, pixel for pixel; returns True (asserts otherwise)."""
+    import numpy as np
+
+    assert view.draw() is view.fig
+    fast = np.array(view.fig.canvas.buffer_rgba())
+    view.fig.canvas.draw()
+    full = np.array(view.fig.canvas.buffer_rgba())
+    assert fast.shape == full.shape
+    differ = np.any(fast != full, axis=-1)
+    assert not differ.any(), f"{int(differ.sum())} pixels differ, e.g. at (row, col) {np.argwhere(differ)[:3].tolist()}"
+    return True

@@ -15,9 +15,9 @@ from kfcal_helpers.calibration.demos import (LIVE_FIGSIZE, CalibrationDemo, Cali
 from kfcal_helpers.calibration.exercises import (EXERCISES, check_demo_first_fix_sigma, check_demo_ratio_band,
                                                  first_fix_sigmas)
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
-from kfcal_helpers.exercises import ROUNDED_HINT, ROUNDED_RTOL
+from kfcal_helpers.exercises import ROUNDED_HINT
 
-from demo_checks import check_render
+from demo_checks import check_render, fast_draw_is_full_draw
 
 P = CalibrationParams()
 HINTS = {i: EXERCISES[i].hints for i in ("17.1", "17.2")}
@@ -117,6 +117,40 @@ def test_calibration_figure_updates_in_place():
         CalibrationDemoFigure(figure="fig")
 
 
+def test_calibration_fast_draw_is_the_full_draw():
+    # the live view renders only what a slider move changes (x axes kept): the same image as a full draw
+    view = CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE))
+    for kw in ({"outage": (12.0, 18.0)}, {"gps_rate": 25.0}, {"gps_rate": 1.0, "outage": (0.0, 30.0)},
+               {"W": 1e-6, "gps_pos_var": 0.01, "bias_var": 1e-6}):
+        view.update(compute_calibration_demo(n_runs=20, **kw))
+        assert fast_draw_is_full_draw(view)
+        assert len(view.spans) == (3 if "outage" in kw else 0)
+        assert all(s.get_visible() == ("outage" in kw) for s in view.axes[0].patches)
+    assert view.background.full_draws == 1
+    live = LiveDemo(calibration_controls(), calibration_demo_for, view)
+    live.controls["W"].value = 1e-3
+    assert not live.failed and live.image.value == figure_png(view.fig) and view.background.full_draws == 1
+
+
+def test_calibration_demo_keeps_its_draws_not_its_numbers():
+    # the ensemble's standard normals are kept across redraws; the numbers are those of fresh draws
+    from kfcal_helpers.calibration.engine import filter_errors_time_major, noise_of_simulation, sample_noise_time_major
+
+    for kw in ({"W": 1e-3}, {"W": 2e-4, "outage": (3.0, 9.0)}):
+        demo = compute_calibration_demo(gps_rate=4.0, n_runs=30, seed=5, **kw)
+        p = P.replace(gps_rate=4.0, W=kw["W"])
+        missing = demo.missing
+        rng_one, rng_ens = (np.random.default_rng(s) for s in np.random.SeedSequence(5).spawn(2))
+        sim = simulate(p, 1, rng_one, missing_fixes=missing)
+        e0, w_t, eta_t = sample_noise_time_major(p, 30, rng_ens)
+        one = noise_of_simulation(sim)
+        e_post = filter_errors_time_major(p, covariance_sequence(p, missing), np.concatenate([one[0], e0]),
+                                          np.concatenate([one[1].transpose(1, 0, 2), w_t], axis=1),
+                                          np.concatenate([one[2].transpose(1, 0, 2), eta_t], axis=1))[1]
+        assert np.allclose(demo.ens_std, e_post[:, 1:].std(axis=1, ddof=1), rtol=1e-12, atol=0)
+        assert np.allclose(demo.ens_mean, e_post[:, 1:].mean(axis=1), rtol=1e-12, atol=1e-15)
+
+
 def test_calibration_controls_match_the_compute_function():
     c = calibration_controls()
     assert set(c) == {"gps_rate", "W", "gps_pos_sigma", "bias_sigma", "outage_on", "outage"}
@@ -158,14 +192,15 @@ def test_check_17_1_first_fix_sigma():
     }
     for key, value in wrong.items():
         assert _rejected(check_demo_first_fix_sigma(value), "17.1", key), key
-    # sigma_p computed from the 3.16 readout is 6.6e-4 (relative) below the right one: outside the check's 1e-4,
-    # inside ROUNDED_RTOL, where the generic "digits copied from a printout" hint would mislead
-    assert 1e-4 < abs(wrong["rounded_readout"][0] / right[0] - 1) < ROUNDED_RTOL
-    four_digits = lambda a: [float(f"{x:.4g}") for x in a]  # noqa: E731  the exercise's 4 significant digits
+    # sigma_p computed from the 3.16 readout is 6.6e-4 (relative) below the right one: a small difference of method
+    # (not a rounding of the right value), which gets its own hint, also when copied to 4 significant digits
+    assert 1e-4 < abs(wrong["rounded_readout"][0] / right[0] - 1) < 1e-3
+    four_digits = lambda a: [float(f"{x:.4g}") for x in a]  # noqa: E731
     assert four_digits(wrong["rounded_readout"]) == [3.013, 0.03997, 0.1]
     assert _rejected(check_demo_first_fix_sigma(four_digits(wrong["rounded_readout"])), "17.1", "rounded_readout")
-    assert check_demo_first_fix_sigma(four_digits(right)).correct         # [3.015, 0.03997, 0.1]
-    assert check_demo_first_fix_sigma([3.0156, 0.03997, 0.1]).message == ROUNDED_HINT  # nearer the right value than any mistake
+    # the one format rule: the computed value, no rounding; the right value rounded is told so
+    assert check_demo_first_fix_sigma(four_digits(right)).message == ROUNDED_HINT  # [3.015, 0.03997, 0.1]
+    assert check_demo_first_fix_sigma([3.0156, 0.03997, 0.1]).message == EXERCISES["17.1"].hint  # near, but no rounding
     assert not check_demo_first_fix_sigma(...).answered
     for bad in ("3.015", [1.0, 2.0], None):
         fb = check_demo_first_fix_sigma(bad)
@@ -178,16 +213,22 @@ def test_check_17_1_first_fix_sigma():
 def test_check_17_2_ratio_band():
     N = 200
     right = np.sqrt(stats.chi2.ppf([0.025, 0.975], N - 1) / (N - 1))
-    assert check_demo_ratio_band(right).correct and check_demo_ratio_band(np.round(right, 5)).correct
+    assert check_demo_ratio_band(right).correct
+    # rounded to any number of decimals, it is told to pass the computed value, never accused of a mistake
+    # (rounded to 3 decimals it is also the N-degrees-of-freedom band rounded: [0.902, 1.098] both)
+    for decimals in (3, 4, 5):
+        assert check_demo_ratio_band(np.round(right, decimals)).message == ROUNDED_HINT, decimals
     demo = compute_calibration_demo(n_runs=N)
     assert np.allclose(demo.ratio_band, right, rtol=1e-12)
     wrong = {
         "n_dof": np.sqrt(stats.chi2.ppf([0.025, 0.975], N) / N),
         "variance": stats.chi2.ppf([0.025, 0.975], N - 1) / (N - 1),
         "one_sided": np.sqrt(stats.chi2.ppf([0.05, 0.95], N - 1) / (N - 1)),
-        "normal": 1 + np.array([-1, 1]) * 1.959964 / np.sqrt(2 * (N - 1)),
-        "mean_band": 1 + np.array([-1, 1]) * 1.959964 / np.sqrt(N),
+        "normal": 1 + np.array([-1, 1]) * stats.norm.ppf(0.975) / np.sqrt(2 * (N - 1)),
+        "mean_band": 1 + np.array([-1, 1]) * stats.norm.ppf(0.975) / np.sqrt(N),
     }
+    for key in ("normal", "mean_band"):  # with the usual z = 1.96 too
+        assert _rejected(check_demo_ratio_band(1 + (wrong[key] - 1) * 1.96 / stats.norm.ppf(0.975)), "17.2", key)
     for key, value in wrong.items():
         assert _rejected(check_demo_ratio_band(value), "17.2", key), key
     assert not check_demo_ratio_band(...).answered and not check_demo_ratio_band([0.9]).correct

@@ -12,7 +12,8 @@ from kfcal_helpers.calibration import (CalibrationParams, batch_filter, covarian
                                        simulate)
 from kfcal_helpers.calibration.engine import (Covariances, accumulated_noise, between_fixes, estimate_between_fixes,
                                               filter_errors_at_fixes, filter_errors_time_major, matrix_powers,
-                                              noise_of_simulation, sample_noise_at_fixes, sample_noise_time_major)
+                                              noise_of_simulation, sample_noise_at_fixes, sample_noise_time_major,
+                                              scale_unit_noise, unit_noise_time_major)
 from kfcal_helpers.calibration.simulation import draw_realizations, error_state_at_fixes, error_state_full
 
 P = CalibrationParams()
@@ -124,6 +125,15 @@ def test_noise_at_fixes_follows_the_error_model():
     a = sample_noise_at_fixes(p, 4, 9)
     b = sample_noise_time_major(p, 4, np.random.default_rng(9))
     assert np.array_equal(a[1], b[1].transpose(1, 0, 2)) and np.array_equal(a[2], b[2].transpose(1, 0, 2))
+    # ... scaled from their standard normals, which are the generator's, in this order
+    z0, z, zeta = unit_noise_time_major(p.n_gps, 4, np.random.default_rng(9))
+    rng = np.random.default_rng(9)
+    assert all(np.array_equal(x, rng.standard_normal(x.shape)) for x in (z0, z, zeta))
+    assert all(np.array_equal(x, y) for x, y in zip(scale_unit_noise(p, z0, z, zeta), b))
+    with pytest.raises(ValueError, match="n_gps"):
+        unit_noise_time_major(0, 4, 9)
+    with pytest.raises(ValueError, match="zeta must have shape"):
+        scale_unit_noise(p, z0, z, zeta[1:])
     with pytest.raises(ValueError, match="seed"):
         sample_noise_at_fixes(p, 4, "x")
     with pytest.raises(ValueError, match="params must be a CalibrationParams"):

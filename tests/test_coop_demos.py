@@ -20,7 +20,7 @@ from kfcal_helpers.coop.demos import (LIVE_FIGSIZE, MEASUREMENT_NAMES, CoopDemoF
 from kfcal_helpers.coop.exercises import EXERCISES, check_lost_directions, check_subset_nis_bounds
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
 
-from demo_checks import check_render, png_size
+from demo_checks import check_render, fast_draw_is_full_draw, png_size
 
 SHORT = replace(CoopParams(), duration=20.0)
 
@@ -131,6 +131,10 @@ def test_coop_figure_and_controls(log):
     assert "UAV GPS east" in view.fig.get_suptitle() and "2 dof" in view.fig.get_suptitle()
     assert all("[" in ax.get_ylabel() for ax in view.axes.flat)
     assert figure_png(view.fig)[:4] == b"\x89PNG"
+    # the live view renders only what a change alters (x axes kept): the same image as a full draw
+    assert fast_draw_is_full_draw(view)
+    view.update(compute_coop_demo(log, "ekf", q_scale=0.05, measurements=(0, 1, 2)))
+    assert fast_draw_is_full_draw(view) and view.background.full_draws == 1
     assert len(draw_coop_demo(compute_coop_demo(log)).axes) == 6
     c = coop_controls()
     assert set(c) == {"filter", "q_scale", "m0", "m1", "m2", "m3", "m4"}

@@ -16,8 +16,10 @@ CAUGHT_BY = COOP_CAUGHT_BY  #: what notebook 14 says, check by check
 
 
 @pytest.fixture(scope="module")
-def rows():
-    return {m: mistake_row(m) for m in MISTAKES}
+def rows(mistakes_table):
+    """``mistake_row(m)`` of every mistake: the rows of the joined table at its defaults, which calls
+    PROBLEM.mistake_row, i.e. mistake_row (tests/conftest.py: computed once, shared with tests/test_mistakes.py)."""
+    return {m: mistakes_table[m] for m in MISTAKES}
 
 
 def test_problem_entry():

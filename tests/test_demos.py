@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from kfcal_helpers.demos import (DEMO_FAILURES, LiveDemo, describe_controls, failure_message, figure_png, new_figure,
-                                 require_finite_demo)
+from kfcal_helpers.demos import (DEMO_FAILURES, CachedBackground, LiveDemo, describe_controls, failure_message,
+                                 figure_png, new_figure, require_finite_demo)
 
-from demo_checks import png_size
+from demo_checks import fast_draw_is_full_draw, png_size
 
 
 @dataclasses.dataclass
@@ -173,3 +173,64 @@ def test_new_figure_and_png():
     import matplotlib.pyplot as plt
 
     plt.close(fig)
+
+
+class FastToyFigure(ToyFigure):
+    """The toy figure with a kept background: its x axis (fixed limits) is drawn once."""
+
+    def __init__(self, figure=None):
+        super().__init__(figure)
+        self.ax.set_xlim(0.0, 1.0)
+        self.ax.set_title("toy")
+        self.background = CachedBackground(self.fig, [self.ax.xaxis], key=lambda: self.ax.get_xlim())
+
+    def update(self, demo):
+        super().update(demo)
+        self.ax.set_ylim(min(0.0, demo.y.min()) - 0.1, max(0.0, demo.y.max()) + 0.1)
+        return self.fig
+
+    def draw(self):
+        return self.background.draw()
+
+
+def test_cached_background_draws_what_a_full_draw_draws():
+    view = FastToyFigure(Figure(figsize=(4.0, 3.0)))
+    for gain in (1.0, 2.5, 0.5):
+        view.update(toy_compute(gain))
+        assert fast_draw_is_full_draw(view)
+    assert view.background.full_draws == 1  # the background was rendered once
+    view.ax.set_xlim(0.0, 2.0)  # what the kept part depends on changed: rendered again, still the same image
+    assert fast_draw_is_full_draw(view) and view.background.full_draws == 2
+    view.update(toy_compute(3.0, kind="down"))
+    assert fast_draw_is_full_draw(view) and view.background.full_draws == 2
+
+
+def test_cached_background_leaves_a_y_offset_beside_a_title_to_a_full_draw():
+    view = FastToyFigure(Figure(figsize=(4.0, 3.0)))
+    view.ax.set_title("a title as wide as the panel, over its offset text")  # matplotlib lifts it over the offset
+    view.update(toy_compute(1.0))
+    view.draw()
+    drawn = view.background.full_draws
+    view.ax.set_ylim(1e6, 1e6 + 1e-3)  # tick labels with an offset text (+1e6) at the top, beside the title
+    assert fast_draw_is_full_draw(view) and view.background.full_draws == drawn + 1
+    assert view.ax.yaxis.offsetText.get_text() and view.ax.title.get_position()[1] > 1.0
+    view.update(toy_compute(2.0))  # back to plain ticks: the title goes back to its place, fast again
+    assert fast_draw_is_full_draw(view) and view.background.full_draws == drawn + 1
+
+
+def test_cached_background_validates_and_live_demo_uses_it():
+    view = FastToyFigure(Figure(figsize=(4.0, 3.0)))
+    with pytest.raises(ValueError, match="fig must be a matplotlib Figure"):
+        CachedBackground(None, [])
+    with pytest.raises(ValueError, match="key must be None or callable"):
+        CachedBackground(view.fig, [], key=1)
+    late = CachedBackground(view.fig, [view.line])  # the line is drawn after the (changing) y axis
+    with pytest.raises(ValueError, match="static artist .* is drawn after a changing artist"):
+        late.draw()
+    with pytest.raises(ValueError, match="drawn=True"):
+        figure_png(Figure(), drawn=True)  # a figure without an Agg canvas has no rendering to encode
+    live = LiveDemo(toy_controls(), toy_compute, view)
+    assert view.background.full_draws == 1
+    live.controls["gain"].value = 2.0
+    assert view.background.full_draws == 1 and not live.failed  # the slider move drew the changed part only
+    assert live.image.value == figure_png(view.fig)  # the same PNG as a full draw

@@ -101,7 +101,7 @@ def cases():
     out["01.1"] = (ex.check_euler_velocity_gap, v_an[-1] - v_e[-1],
                    [("sign", v_e[-1] - v_an[-1]), ("no_half", DT * A * np.sin(8.0)),
                     ("omega", DT / 2 * A * np.sin(2.0)), ("hertz", DT / 2 * A * np.sin(2 * np.pi * 8.0)),
-                    ("position", DT / 2 * A / 0.8 * (1 - np.cos(8.0)))], [approx])
+                    ("position", DT / 2 * A / 0.8 * (1 - np.cos(8.0))), ("bound", DT / 2 * A)], [approx])
     # 01.2 --------------------------------------------------------------------------------
     p_an, v_an, p_e, v_e = truths(0.8, 30.0)
     out["01.2"] = (ex.check_euler_position_gap_max, np.max(np.abs(p_an - p_e)),
@@ -128,7 +128,8 @@ def cases():
                    [("n_dof", 0.02 * np.sqrt(two_sided(50, 50))), ("variance", 4e-4 * two_sided(49, 49)),
                     ("one_sided", 0.02 * np.sqrt(two_sided(49, 49, alpha=0.1))),
                     ("no_divide", 0.02 * np.sqrt(two_sided(49, 1))),
-                    ("normal", 0.02 * (1 + np.array([-1, 1]) * stats.norm.ppf(0.975) / np.sqrt(98)))], [])
+                    ("normal", 0.02 * (1 + np.array([-1, 1]) * stats.norm.ppf(0.975) / np.sqrt(98))),
+                    ("normal", 0.02 * (1 + np.array([-1, 1]) * 1.96 / np.sqrt(98)))], [])
     # 03.1 --------------------------------------------------------------------------------
     idx = [50 * i for i in range(121)]
     out["03.1"] = (ex.check_gps_fix_indices, idx,
@@ -154,9 +155,10 @@ def cases():
                     ("no_half", right - [[0, 0, d**2 / 2], [0, 0, 0], [0, 0, 0]])], [right.tolist()])
     # 04.2 --------------------------------------------------------------------------------
     out["04.2"] = (ex.check_gamma_100hz, [-5e-5, -0.01, 0.0],
-                   [("signs", [5e-5, 0.01, 0.0]), ("dt_first", [-0.01, -0.01, 0.0]), ("no_half", [-1e-4, -0.01, 0.0]),
-                    ("rate", [-1.25e-5, -0.005, 0.0]), ("bias_noise", [-5e-5, -0.01, 1.0])],
-                   [np.array([[-5e-5], [-0.01], [0.0]])])
+                   [("dt_first", [-0.01, -0.01, 0.0]), ("no_half", [-1e-4, -0.01, 0.0]),
+                    ("rate", [-1.25e-5, -0.005, 0.0]), ("bias_noise", [-5e-5, -0.01, 1.0]),
+                    ("dt_first", [0.01, 0.01, 0.0]), ("bias_noise", [5e-5, 0.01, -1.0])],  # the same with -Γ
+                   [np.array([[-5e-5], [-0.01], [0.0]]), [5e-5, 0.01, 0.0]])  # -Γ: the same Q = W Γ Γᵀ
     # 04.3 --------------------------------------------------------------------------------
     right = np.linalg.matrix_power(phi(d), 25)
     out["04.3"] = (ex.check_phi_fix_to_fix, right,
@@ -185,7 +187,9 @@ def cases():
 
     out["05.3"] = (ex.check_second_gain, K,
                    [("one_short", gain(coast(P_first, 39))), ("one_long", gain(coast(P_first, 41))),
-                    ("no_q", gain(coast(P_first, 40, q=False))), ("no_first_update", gain(coast(m.M0, 40)))], [])
+                    ("no_q", gain(coast(P_first, 40, q=False))), ("no_first_update", gain(coast(m.M0, 40))),
+                    ("once_per_fix", gain(coast(P_first, 1))), ("first_gain", K0),
+                    ("fix_phi_one_q", gain(coast(P_first, 40, q=False) + noise_sum_closed_form(1)))], [])
     # 06.1 --------------------------------------------------------------------------------
     out["06.1"] = (ex.check_mc_nis_bounds, two_sided(100, 50),
                    [("dim3", two_sided(150, 50)), ("dim1", two_sided(50, 50)), ("one_sided", two_sided(100, 50, 0.1)),
@@ -197,7 +201,8 @@ def cases():
                     ("linear", 0.8 + np.array([-z, z]) / np.sqrt(297)),
                     ("z_space", np.arctanh(0.8) + np.array([-z, z]) / np.sqrt(297)),
                     ("one_sided", np.tanh(np.arctanh(0.8) + np.array([-1.6448536269514722, 1.6448536269514722])
-                                          / np.sqrt(297)))], [])
+                                          / np.sqrt(297))),
+                    ("z_rounded", np.tanh(np.arctanh(0.8) + np.array([-1.96, 1.96]) / np.sqrt(297)))], [])
     # 06.3 --------------------------------------------------------------------------------
     lvl = 0.05 / 1057
     out["06.3"] = (ex.check_simultaneous_nees_band, two_sided(3000, 1000, lvl),
@@ -236,9 +241,14 @@ def cases():
     Sxz = np.hstack([C10[:, :2], Pi1[:, :2]])
     Czz = np.block([[m.M0[:2, :2], C10[:2, :2].T], [C10[:2, :2], Pi1[:2, :2]]])
     no_v = Pi1 - Sxz @ np.linalg.solve(Czz, Sxz.T)
+    Pi1_no_q = coast(m.M0, 40, q=False)  # the process-noise sum of the 40 steps dropped
+    Sxz_no_q = np.hstack([C10[:, :2], Pi1_no_q[:, :2]])
+    Czz_no_q = np.block([[m.M0[:2, :2], C10[:2, :2].T], [C10[:2, :2], Pi1_no_q[:2, :2]]]) + np.kron(np.eye(2), m.V)
+    no_q_sum = Pi1_no_q - Sxz_no_q @ np.linalg.solve(Czz_no_q, Sxz_no_q.T)
+    assert np.max(np.abs(no_q_sum - kf.P) / np.abs(kf.P)) < 1e-3  # a method error within 1e-3 of the right value
     out["16.1"] = (ex.check_batch_two_fixes, kf.P,
                    [("only_last", only_last), ("prior", prior1), ("unconditioned", Pi1),
-                    ("sign", 2 * Pi1 - kf.P), ("no_v", no_v)], [])
+                    ("sign", 2 * Pi1 - kf.P), ("no_v", no_v), ("no_q_sum", no_q_sum)], [])
     # 16.2 --------------------------------------------------------------------------------
     p10 = CalibrationParams(duration=10.0)
     P, P_prior, _, _ = covariance_sequence(p10)
@@ -375,7 +385,7 @@ def test_predict_only_check():
         fb = check(lambda *a, out=out: out)
         assert fb.message == HINTS["05.1"]["tuple"]
     fb = check(lambda x, P, Phi, Q, n: (predict_loop(x, P, Phi, Q, n)[0], np.eye(3)))
-    assert fb.message.startswith("x is right, P is not")
+    assert fb.message.startswith("x̄ is right, M is not")
 
 
 def test_trapezoid_check():
@@ -451,14 +461,19 @@ def test_mismatch_failures_check():
     assert failing == {"covariance", "nees"}
     for answer in (failing, sorted(failing), tuple(failing), frozenset(failing)):
         assert check(answer).correct
-    for extra, key in (("mean_error", "mean_error"), ("orthogonality", "orthogonality"), ("nis", "residual"),
-                       ("residual_variance", "residual"), ("residual_independence", "residual")):
-        fb = check(failing | {extra})
-        assert not fb.correct and HINTS["07.3"][key] in fb.message
+    from kfcal_helpers.calibration import CHECK_NAMES
+
+    # a wrong set is told whether it holds a passing check, misses a failing one, or both, never which one
+    # (naming them would solve the exercise by elimination)
+    for extra in ("mean_error", "orthogonality", "nis", "residual_variance", "residual_independence"):
+        for answer, key in ((failing | {extra}, "extra"), ({"nees", extra}, "mixed")):
+            fb = check(answer)
+            assert not fb.correct and fb.message == HINTS["07.3"][key], (answer, str(fb))
+            assert not any(name in fb.message for name in CHECK_NAMES), str(fb)
     for partial in ({"nees"}, {"covariance"}, set()):
         fb = check(partial)
         assert not fb.correct and fb.message == HINTS["07.3"]["missing"]
-        assert "nees" not in fb.message and "covariance" not in fb.message  # the hint does not name them
+        assert not any(name in fb.message for name in CHECK_NAMES), str(fb)
     fb = check({"nees", "NEES"})
     assert not fb.correct and "'NEES'" in fb.message and HINTS["07.3"]["unknown"] in fb.message
     for bad in ("nees", 3, {1, 2}, np.array([1.0]), lambda: None):
@@ -471,12 +486,12 @@ def test_mismatch_failures_check():
 # --------------------------------------------------------------------------------------------
 def test_every_check_is_exported_and_has_one_record():
     checks = [n for n in ex.__all__ if n.startswith("check_")]
-    assert len(checks) == 30 and len(set(checks)) == 30
+    assert len(checks) == 33 and len(set(checks)) == 33
     for name in checks:
         assert callable(getattr(ex, name)), name
     assert all(isinstance(e, Exercise) and e.id == i for i, e in EXERCISES.items())
     ids = set(CASES) | set(FUNCTION_CHECKS)
-    assert ids | {"14.1", "14.2", "17.1", "17.2"} == set(EXERCISES)
+    assert ids | {"14.1", "14.2", "17.1", "17.2"} | {"02.4", "02.5", "03.4"} == set(EXERCISES)  # the last three: test_exercises_calibration_functions.py
     assert {i.split(".")[0] for i in ids} == {"01", "02", "03", "04", "05", "06", "07", "15", "16"}
 
 
@@ -502,7 +517,7 @@ def test_four_significant_figures_get_the_message_of_what_was_rounded(exercise):
     fig4 = lambda x: np.array([float(f"{v:.4g}") for v in np.ravel(x)])  # noqa: E731
     assert not check(fig4(right)).correct and check(fig4(right)).message == ROUNDED_HINT
     near = [(k, w) for k, w in wrong if k in ("steps", "normal")]
-    assert len(near) == {"02.2": 2, "02.3": 1}[exercise]
+    assert len(near) == 2  # 02.2: one step too few or too many; 02.3: the normal approximation, z exact or 1.96
     for key, answer in near:
         assert np.max(np.abs(np.asarray(answer) - right)) / np.max(np.abs(right)) < 1e-3  # the case in point
         fb = check(fig4(answer))
@@ -546,3 +561,35 @@ def test_keyword_parameters_change_the_right_answer():
     assert ex.check_phi_100hz(phi(0.02), imu_rate=50.0).correct
     P0 = np.diag([0.04, 1e-4, 1e-6])
     assert ex.check_outage_sigma(np.sqrt(np.diag(coast(P0, 440))), P0=P0, start=3.0, end=5.0).correct
+
+
+@pytest.mark.parametrize("exercise", ["01.3", "02.1", "02.2", "03.2", "04.3", "05.1", "05.2", "05.3", "06.2", "07.2",
+                                      "15.1"])
+def test_generic_hint_is_a_nudge_not_the_formula(exercise):
+    hint = GENERIC[exercise]
+    assert not any(sym in hint for sym in ("=", "←", "⁻¹", "Σ", "√", "[[")), hint
+
+
+def test_gamma_of_either_sign_is_right():
+    right = np.array([-5e-5, -0.01, 0.0])
+    fb = ex.check_gamma_100hz(-right)
+    assert fb.correct and fb.message == ex.GAMMA_OTHER_SIGN_PRAISE and "same" in fb.message
+    assert ex.check_gamma_100hz(right).message == PRAISE["04.2"]
+    # the other sign rounded is told it is rounded, like the notebook's sign
+    dt = 1 / 300
+    flipped = np.array([dt**2 / 2, dt, 0.0])
+    assert ex.check_gamma_100hz(flipped, imu_rate=300.0).correct
+    assert ex.check_gamma_100hz([float(f"{x:.4g}") for x in flipped], imu_rate=300.0).message == ROUNDED_HINT
+
+
+@pytest.mark.parametrize("exercise", NUMERIC)
+def test_the_right_value_as_complex_is_not_right(exercise):
+    """A complex answer never loses its imaginary part silently (no ComplexWarning, no praise)."""
+    import warnings
+
+    check, right, _, _ = CASES[exercise]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for answer in (np.asarray(right, dtype=float) + 1e-3j, np.asarray(right, dtype=complex)):
+            fb = check(answer)
+            assert not fb.correct and "complex" in fb.message, str(fb)

@@ -20,7 +20,7 @@ from dataclasses import replace
 import kfcal_helpers.coop.exercises as exercises
 from kfcal_helpers.coop import CoopParams, simulate
 from kfcal_helpers.coop import exercises as coop
-from kfcal_helpers.exercises._core import GENERIC_HINT, Feedback
+from kfcal_helpers.exercises._core import GENERIC_HINT, ROUNDED_HINT, Feedback
 
 HINTS = {ex: e.hints for ex, e in coop.EXERCISES.items() if not ex.startswith("18.")}
 P = CoopParams()
@@ -464,10 +464,14 @@ def test_accepts_the_right_bounds(updates_15s, updates_every10):
 
 
 @pytest.mark.parametrize("exercise", ["10.1", "13.1", "13.2"])
-def test_bounds_rounded_to_three_decimals_pass(exercise, updates_15s, updates_every10):
+def test_bounds_rounded_are_told_to_pass_the_computed_value(exercise, updates_15s, updates_every10):
+    """One answer-format rule: the computed value, no rounding; a rounded copy is told so, at any precision."""
     right = {"10.1": right_10_1(), "13.1": avg_bounds(5, updates_15s, coop.LOG_ALPHA),
              "13.2": avg_bounds(5, updates_every10, 0.05)}[exercise]
-    assert CHECKS[exercise][0](np.round(right, 3)).correct
+    for decimals in (3, 4, 6):
+        fb = CHECKS[exercise][0](np.round(right, decimals))
+        assert not fb.correct and fb.message == ROUNDED_HINT, (decimals, str(fb))
+    assert CHECKS[exercise][0](right).correct
 
 
 def test_other_valid_forms_are_accepted():
@@ -635,3 +639,38 @@ def test_parameters_other_than_the_exercise_defaults():
 def test_bad_parameters_raise_value_error(call, name):
     with pytest.raises(ValueError, match=name):
         call()
+
+
+def test_small_physical_errors_get_method_hints_and_only_roundings_are_told_so():
+    """08.1: closeness is per component in its own units, not relative to the largest entry (40 m): a 0.035 rad
+    heading error, a 3 cm position error or a sign slip is a method error, not a copied printout nor the sinc or
+    mean-heading mistake; the right value (or a mistake's) rounded to a few decimals is told what it is."""
+    right = right_08_1()
+    x = np.array(coop.STEP_X)
+    slips = [right + d for d in np.eye(6)[[2, 5]] * 0.035] + [right + d for d in np.eye(6)[[0, 3]] * 0.03]
+    slip = right.copy()
+    slip[1] = 2 * x[1] - right[1]  # the north displacement with the wrong sign
+    for answer in [*slips, slip]:
+        fb = exercises.check_step_map(answer)
+        assert not fb.correct and fb.message == GENERIC_HINT, (answer, str(fb))
+    for decimals in (2, 3, 5):
+        assert exercises.check_step_map(np.round(right, decimals)).message == ROUNDED_HINT
+    no_sinc = wrong_08_1()["no_sinc"]
+    assert exercises.check_step_map(np.round(no_sinc, 4)).message == HINTS["08.1"]["no_sinc"]
+
+
+@pytest.mark.parametrize("exercise", sorted(RIGHT))
+def test_the_right_value_as_complex_is_not_right(exercise):
+    """A complex answer (or a function returning one) never loses its imaginary part silently."""
+    import warnings
+
+    check, is_fn = CHECKS[exercise]
+    right = RIGHT[exercise]()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        if is_fn:
+            answer = lambda *a: np.asarray(right(*a), dtype=complex)  # noqa: E731
+        else:
+            answer = np.asarray(right, dtype=float) + 1e-3j
+        fb = check(answer)
+        assert not fb.correct and "complex" in fb.message, str(fb)

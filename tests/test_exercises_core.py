@@ -47,14 +47,100 @@ def test_unknown_mistake_key_is_a_programming_error():
         EX.judge(1.0, 2.0, [(1.0, "nope")])
 
 
-def test_the_nearest_of_right_value_and_mistakes_decides_for_a_rounded_answer():
-    right, off_by_one = 1.0, 1.0008   # a mistake within 1e-3 of the right value
+def test_only_a_rounding_is_told_it_is_rounded():
+    right, off = 1.00004, 1.0008   # a mistake 8e-4 from the right value
     ex = Exercise("99.4", praise="right", hint="generic", hints={"count": "count the steps again"})
-    assert ex.judge(1.0007, right, [(off_by_one, "count")]).message == "count the steps again"
-    assert ex.judge(1.0001, right, [(off_by_one, "count")]).message == ROUNDED_HINT
+    assert ex.judge(1.001, right, [(off, "count")]).message == "count the steps again"  # the mistake, 3 decimals
+    assert ex.judge(1.0, right, [(off, "count")]).message == ROUNDED_HINT                 # the right value, 4 decimals
+    assert ex.judge(1.0007, right, [(off, "count")]).message == "generic"                 # near both, a rounding of neither
+    # a rounding of the right value AND of a mistake: at that precision nobody can tell, so not the mistake's hint
+    assert ex.judge(1.000, right, [(1.00012, "count")]).message == ROUNDED_HINT
+    # truncated digits count as rounded; one more digit off does not
+    assert ex.judge(0.1032, 0.103283).message == ROUNDED_HINT
+    assert ex.judge(0.1034, 0.103283).message == "generic"
+
+
+def test_closeness_is_per_component_not_relative_to_the_largest_entry():
+    right = np.array([40.123456, 2.123456, -30.2468])   # m, rad, m
+    for small_physical_error in ([0.0, 0.035, 0.0], [0.03, 0.0, 0.0], [0.0, 0.0, -0.012]):
+        fb = EX.judge(right + small_physical_error, right)
+        assert fb.message == "generic", (small_physical_error, str(fb))
+    # near a mistake's value but not a rounding of it: the generic hint, not that mistake's
+    sinc = right + [0.0, 0.0, 0.02]
+    assert EX.judge(right + [0.0, 0.035, 0.02], right, [(sinc, "sign")]).message == "generic"
+    assert EX.judge(np.round(right, 2), right).message == ROUNDED_HINT
+    assert EX.judge([float(f"{x:.5g}") for x in right], right).message == ROUNDED_HINT
 
 
 def test_a_matrix_rounded_to_fixed_decimals_counts_as_close():
     K = np.array([[0.0975, 1.2e-4], [3.3e-3, 0.91], [-7.1e-8, 2.5e-5]])
     fb = EX.judge(np.round(K, 4), K)  # small entries lose all their digits, the matrix is still close
     assert not fb.correct and fb.message == ROUNDED_HINT
+
+
+# --------------------------------------------------------------------------------------------
+# every check of both problems survives any answer: one line, never praise, no exception, no warning
+# --------------------------------------------------------------------------------------------
+def _all_checks():
+    import kfcal_helpers.calibration.exercises as cal
+    import kfcal_helpers.coop.exercises as coop
+
+    return [(m.__name__.split(".")[1], name, getattr(m, name)) for m in (cal, coop) for name in m.__all__
+            if name.startswith("check_")]
+
+
+BAD_ANSWERS = {
+    "10**400": 10**400, "[10**400]*3": [10**400] * 3, "1e308": 1e308, "-1e308": -1e308, "[1e308, -1e308]": [1e308, -1e308],
+    "nan": float("nan"), "inf": float("inf"), "1+2j": 1 + 2j, "complex array": np.full(3, 1 + 2j),
+    "complex (2,2)": np.array([[1 + 1e-3j, 0], [0, 1]]), "abc": "abc", "None": None, "[]": [], "object()": object(),
+    "fn 10**400": lambda *a, **k: 10**400, "fn [10**400]": lambda *a, **k: [10**400] * 5,
+    "fn 1e308": lambda *a, **k: 1e308, "fn -1e308 array": lambda *a, **k: np.full(5, -1e308),
+    "fn 1+2j": lambda *a, **k: 1 + 2j, "fn complex array": lambda *a, **k: np.full((5, 1), 1 + 2j),
+    "fn nan": lambda *a, **k: float("nan"), "fn (10**400, 1e308)": lambda *a, **k: (10**400, np.full(7, 1e308)),
+    "fn (complex, complex)": lambda *a, **k: (np.ones(3) * 1j, np.eye(3) * 1j), "fn abc": lambda *a, **k: "abc",
+    "fn object": lambda *a, **k: object(),
+    "fn 1e308 pair (7,)": lambda *a, **k: (np.full(7, 1e308), np.full(7, -1e308)),
+    "fn 1e308 pair (3,), (3, 3)": lambda *a, **k: (np.full(3, 1e308), np.full((3, 3), -1e308)),
+    "fn 1e308 (8,)": lambda *a, **k: np.full(8, 1e308), "fn 1e308 (5, 1)": lambda *a, **k: np.full((5, 1), -1e308),
+    "fn complex pair (7,)": lambda *a, **k: (np.ones(7), np.ones(7) + 1j),
+}
+
+
+@pytest.mark.parametrize("module, name, check", _all_checks(), ids=lambda v: v if isinstance(v, str) else "")
+def test_every_check_answers_any_answer_with_one_line_and_no_warning(module, name, check):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for label, answer in BAD_ANSWERS.items():
+            fb = check(answer)
+            assert isinstance(fb, Feedback), (name, label)
+            text = str(fb)
+            assert not fb.correct and "\n" not in text and fb.message, (name, label, text)
+            assert text.startswith(f"✘ {fb.exercise} "), (name, label, text)
+        # huge, NaN and complex entries in every shape an exercise asks for (so the check's own arithmetic runs)
+        for shape in ((2,), (3,), (4,), (5,), (6,), (2, 2), (3, 2), (3, 3), (5, 1), (6, 6), (121,), (151,)):
+            for fill in (1e308, -1e308, np.nan, 1 + 2j):
+                for answer in (np.full(shape, fill), np.where(np.arange(np.prod(shape)).reshape(shape) % 2, fill, 1.0)):
+                    fb = check(answer)
+                    assert not fb.correct and "\n" not in str(fb) and fb.message, (name, shape, fill, str(fb))
+
+
+def test_non_numbers_get_their_own_hint():
+    for answer, words in ((10**400, "too large"), ([1.0, 10**400], "too large"), (1 + 2j, "complex"),
+                          (np.array([1.0, 2.0]) + 0j, "complex"), (float("nan"), "NaN"), ([np.inf, 1.0], "NaN or inf"),
+                          ("abc", "expected numbers"), (object(), "expected numbers"), ([[1, 2], [3]], "expected numbers"),
+                          (lambda: 1.0, "expected numbers")):
+        fb = EX.judge(answer, 2.0 if np.isscalar(answer) or callable(answer) else [1.0, 2.0])
+        assert not fb.correct and fb.answered and words in fb.message, (answer, str(fb))
+    assert EX.judge(1e308, 2.0).message == "generic"
+    assert not EX.judge(2.0 + 0j, 2.0).correct  # a complex answer is never right, even with a zero imaginary part
+    for out, words in ((10**400, "too large"), (1 + 2j, "complex"), ((np.ones(2), np.nan), "NaN")):
+        outs, fb = call_student("99.5", lambda x, out=out: out, [(1.0,)])
+        assert outs is None and words in fb.message, str(fb)
+
+
+def test_a_placeholder_left_in_one_entry_is_named():
+    for answer in ([1.0, None], [..., 2.0]):
+        fb = EX.judge(answer, [1.0, 2.0])
+        assert not fb.correct and fb.answered and "placeholder" in fb.message, str(fb)

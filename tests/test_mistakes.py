@@ -15,8 +15,9 @@ CAUGHT_BY = {**CALIBRATION_CAUGHT_BY, **COOP_CAUGHT_BY}  #: what notebook 14 say
 
 
 @pytest.fixture(scope="module")
-def table():
-    return mistake_table()
+def table(mistakes_table):
+    """mistake_table() at its defaults (tests/conftest.py: computed once, shared with the problems' row tests)."""
+    return mistakes_table
 
 
 def test_table_rows_and_columns(table):

@@ -214,9 +214,10 @@ PACKAGE = Path(kfcal_helpers.__file__).parent
 PROBLEM_PACKAGES = tuple(p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists() and p.name != "exercises")
 
 
-def _imports(path: Path):
-    """(module path of each import, names imported) of a source file, relative imports resolved."""
-    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+def _imports(path: Path, root: Path = PACKAGE.parent):
+    """(module path of each import, names imported) of a source file under ``root`` (the folder holding
+    the package), relative imports resolved."""
+    parts = list(path.relative_to(root).with_suffix("").parts)
     if parts[-1] == "__init__":
         parts = parts[:-1]
     package = parts if path.name == "__init__.py" else parts[:-1]
@@ -253,3 +254,107 @@ def test_imports_point_one_way(path):
         if module != ".".join(["kfcal_helpers", *rel.with_suffix("").parts]):
             private = [n for n in names if n.startswith("_") and not n.startswith("__")]
             assert not private, f"{rel} imports private names {private} from {module}"
+
+
+def _module_names(package: Path) -> dict:
+    """``{dotted module name: file}`` of every module of ``package`` (a package is its ``__init__``)."""
+    out = {}
+    for path in package.rglob("*.py"):
+        parts = list(path.relative_to(package.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out[".".join(parts)] = path
+    return out
+
+
+def import_graph(package: Path = PACKAGE) -> dict:
+    """``{module: {modules of ``package`` it imports}}`` from every ``import`` and ``from ... import``
+    statement anywhere in each module (top level, functions, classes, ``if`` blocks), relative
+    imports resolved; ``from M import n`` counts as importing ``M.n`` when that is a module, else ``M``."""
+    modules = _module_names(package)
+    graph = {}
+    for name, path in modules.items():
+        edges = set()
+        for module, names in _imports(path, package.parent):
+            if names and all(f"{module}.{n}" in modules for n in names):
+                continue  # "from M import submodule": the submodules are yielded on their own
+            if module in modules and module != name:
+                edges.add(module)
+        graph[name] = edges
+    return graph
+
+
+def import_cycles(graph: dict) -> list:
+    """The import circles of ``graph``: one cycle (a list of modules, first repeated at the end) per
+    strongly connected component with more than one module."""
+    index, low, stack, on_stack, cycles = {}, {}, [], set(), []
+
+    def strongconnect(v):  # Tarjan's algorithm
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                strongconnect(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(_one_cycle(graph, set(component)))
+
+    for v in sorted(graph):
+        if v not in index:
+            strongconnect(v)
+    return cycles
+
+
+def _one_cycle(graph: dict, component: set) -> list:
+    """A shortest cycle through the smallest module of a strongly connected ``component`` (breadth first)."""
+    start = min(component)
+    paths = {start: [start]}
+    queue = [start]
+    while queue:
+        v = queue.pop(0)
+        for w in sorted(graph[v] & component):
+            if w == start:
+                return [*paths[v], start]
+            if w not in paths:
+                paths[w] = [*paths[v], w]
+                queue.append(w)
+    raise AssertionError("not a strongly connected component")
+
+
+def test_cycle_finder_finds_function_level_circles(tmp_path):
+    """On a small package: imports inside functions and ``if`` blocks, relative and absolute, are
+    edges; ``from . import sub`` points to the submodule; the circle of three is reported."""
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("import os\n\n\ndef f():\n    from . import b\n    return b\n")
+    (pkg / "b.py").write_text("if True:\n    from .sub.c import VALUE\n")
+    (pkg / "sub" / "__init__.py").write_text("from . import c\n")
+    (pkg / "sub" / "c.py").write_text("class K:\n    def m(self):\n        import pkg.a\n\n\nVALUE = 1\n")
+    (pkg / "d.py").write_text("from .sub import c\nfrom . import a\n")
+    graph = import_graph(pkg)
+    assert graph == {"pkg": set(), "pkg.a": {"pkg.b"}, "pkg.b": {"pkg.sub.c"}, "pkg.sub": {"pkg.sub.c"},
+                     "pkg.sub.c": {"pkg.a"}, "pkg.d": {"pkg.sub.c", "pkg.a"}}
+    assert import_cycles(graph) == [["pkg.a", "pkg.b", "pkg.sub.c", "pkg.a"]]
+    assert import_cycles({"a": {"b"}, "b": set()}) == []
+    real = import_graph()
+    assert "kfcal_helpers.calibration" in real["kfcal_helpers.problems"]  # from .calibration import PROBLEM
+    assert "kfcal_helpers.calibration.cli" in real["kfcal_helpers.calibration"]  # from . import cli
+
+
+def test_no_import_circle():
+    """No chain of imports leads from a module back to itself, imports inside functions included:
+    problem code -> shared code, and the command line -> the problem list -> problem code."""
+    cycles = import_cycles(import_graph())
+    assert cycles == [], "import circles: " + "; ".join(" -> ".join(c) for c in cycles)

@@ -18,19 +18,19 @@ CELLS = [
 ]
 
 
-def _outputs(mplbackend):
+def _outputs(mplbackend, kernel_manager_class):
     nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(c) for c in CELLS])
     env = {k: v for k, v in os.environ.items() if k != "MPLBACKEND"}
     if mplbackend is not None:
         env["MPLBACKEND"] = mplbackend
-    NotebookClient(nb, timeout=120, kernel_name="python3").execute(env=env)
+    NotebookClient(nb, timeout=120, kernel_name="python3", kernel_manager_class=kernel_manager_class).execute(env=env)
     return [[(o["output_type"], o.get("name"), o.get("text"), dict(o.get("data", {}))) for o in cell.outputs]
             for cell in nb.cells]
 
 
 @pytest.fixture(scope="module")
-def reference():
-    return _outputs(None)  # what ipykernel does with MPLBACKEND unset: the inline backend
+def reference(kernel_manager_class):
+    return _outputs(None, kernel_manager_class)  # what ipykernel does with MPLBACKEND unset: the inline backend
 
 
 def test_reference_shows_the_figures(reference):
@@ -40,8 +40,8 @@ def test_reference_shows_the_figures(reference):
 
 
 @pytest.mark.parametrize("mplbackend", ["Agg", "svg"])
-def test_same_outputs_whatever_mplbackend(reference, mplbackend):
-    assert _outputs(mplbackend) == reference  # the same cells, the same PNG bytes, no warning on stderr
+def test_same_outputs_whatever_mplbackend(reference, mplbackend, kernel_manager_class):
+    assert _outputs(mplbackend, kernel_manager_class) == reference  # the same cells, the same PNG bytes, no warning on stderr
 
 
 def test_outside_a_kernel_the_backend_is_left_alone():

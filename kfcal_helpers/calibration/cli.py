@@ -164,7 +164,7 @@ def write_figures(mc, directory, seed: int = 0) -> list[Path]:
     shaded in the figures).  The first two are the lecture figures ``calib_errors`` and
     ``calib_sigma_sawtooth`` of :mod:`kfcal_helpers.calibration.figures`.  Returns the paths written.
     """
-    from ..figures import save_figures
+    from ..slides import save_figures
     from ..registry import LectureFigure
     from .figures import FIGURES, CalibrationFigureData
 
@@ -187,13 +187,14 @@ def _params(args):
 
 
 def run(args) -> int:
-    from ..output import dumps_json
+    from ..output import dumps_json, path_text
 
     require_int("--runs", args.runs, minimum=2)
     if args.figures is not None:
-        from ..figures import check_directory, use_agg_backend
+        from ..slides import check_directory, check_targets, use_agg_backend
 
-        check_directory(args.figures, "--figures")  # before the Monte Carlo, not after it
+        # before the Monte Carlo, not after it
+        check_targets(check_directory(args.figures, "--figures"), FIGURE_FILES, argname="--figures")
         use_agg_backend()
     params = _params(args)
     # before anything of the scenario's size is allocated: refuse what cannot fit or would take hours, and
@@ -229,5 +230,5 @@ def run(args) -> int:
     if mc.truth == "analytic" and not all(c.passed for c in checks.values()):
         print(MISMATCH_NOTE)
     for p in written:
-        print(f"wrote {p}")
+        print(f"wrote {path_text(p)}")
     return 0

@@ -4,12 +4,14 @@
 in a :class:`CalibrationDemo`: the covariances and gains once
 (:func:`~kfcal_helpers.calibration.covariance_sequence`, propagated fix to fix), one 200 Hz
 realization (``simulate``) and a 200-realization ensemble drawn at the fixes
-(:func:`~kfcal_helpers.calibration.engine.sample_noise_at_fixes`), whose errors come from the
+(:func:`~kfcal_helpers.calibration.engine.sample_noise_at_fixes`; its standard normals are kept for
+the next redraw with the same seed and GPS rate), whose errors come from the
 filter's error recursion (:func:`~kfcal_helpers.calibration.engine.filter_errors_at_fixes`, the
 numbers ``batch_filter`` gives on the same draws); the ensemble's spread is compared with the
 filter's sigma at every fix.  :class:`CalibrationDemoFigure` draws the errors with their +-2 sigma
 bands; it builds its figure once and :meth:`~CalibrationDemoFigure.update` only replaces the data,
-so a redraw costs one render.  :func:`calibration_controls` builds the sliders; the notebook wires
+and :meth:`~CalibrationDemoFigure.draw` renders it with the x axes (the same for every setting)
+kept from the first render, so a redraw renders only what changed.  :func:`calibration_controls` builds the sliders; the notebook wires
 them to the figure with the shared :class:`kfcal_helpers.demos.LiveDemo`.  The benchmark
 (``benchmarks/bench_demos.py``) and the tests time and check the compute function on its own.
 """
@@ -17,16 +19,17 @@ them to the figure with the shared :class:`kfcal_helpers.demos.LiveDemo`.  The b
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import ClassVar
 
 import numpy as np
 
 from ..consistency import chi2_bounds
-from ..demos import new_figure
+from ..demos import CachedBackground, new_figure
 from ..validation import (require_choice, require_finite, require_instance, require_int, require_positive,
                           require_probability)
 from .engine import (covariance_sequence, estimate_between_fixes, filter_errors_time_major, noise_of_simulation,
-                     sample_noise_time_major)
+                     scale_unit_noise, unit_noise_time_major)
 from .outages import outage_mask
 from .params import CalibrationParams
 from .simulation import simulate
@@ -55,6 +58,17 @@ def valid_gps_rates(imu_rate: float = 200.0, max_rate: float = 25.0) -> tuple[fl
         raise ValueError(f"imu_rate must be a whole number of Hz, got {imu_rate!r}")
     return tuple(float(d) for d in range(1, n + 1) if n % d == 0 and d <= max_rate)
 
+
+
+@lru_cache(maxsize=8)
+def _unit_draws(seed_entropy: int, n_runs: int, n_gps: int):
+    """The ensemble's standard normal draws for one seed, ensemble size and number of fixes (read-only
+    arrays): a slider move that keeps the GPS rate draws nothing new (common random numbers)."""
+    rng = np.random.default_rng(np.random.SeedSequence(seed_entropy).spawn(2)[1])
+    draws = unit_noise_time_major(n_gps, n_runs, rng)
+    for a in draws:
+        a.flags.writeable = False
+    return draws
 
 
 @dataclass(frozen=True, eq=False)
@@ -160,7 +174,8 @@ def compute_calibration_demo(gps_rate: float = 5.0, W: float = 0.0004, gps_pos_v
 
     sim = simulate(params, 1, rng_one, missing_fixes=missing)  # the realization drawn at 200 Hz
     if ensemble == "fixes":
-        e0, w_t, eta_t = sample_noise_time_major(params, n_runs, rng_ens)
+        # the draws of sample_noise_time_major(params, n_runs, rng_ens), their standard normals kept
+        e0, w_t, eta_t = scale_unit_noise(params, *_unit_draws(seed, n_runs, params.n_gps))
     else:
         e0, w, eta = noise_of_simulation(simulate(params, n_runs, rng_ens, missing_fixes=missing))
         w_t, eta_t = w.transpose(1, 0, 2), eta.transpose(1, 0, 2)
@@ -186,8 +201,10 @@ class CalibrationDemoFigure:
     :class:`CalibrationDemo` into the same lines (a redraw then only re-renders).
 
     Three panels (position, velocity, bias): one realization's error at 200 Hz, the filter's
-    +-2 sigma, the ensemble's +-2 s at the fixes, the outage shaded.  ``figure``: a Figure to
-    draw on (e.g. ``matplotlib.figure.Figure()`` for a widget, outside pyplot); default a new
+    +-2 sigma, the ensemble's +-2 s at the fixes, the outage shaded (above the grid, under the curves).
+    :meth:`draw` renders it onto its Agg canvas with the x axes kept from the first render (a
+    :class:`kfcal_helpers.demos.CachedBackground`), the same image as ``fig.canvas.draw()``.
+    ``figure``: a Figure to draw on (e.g. ``matplotlib.figure.Figure()`` for a widget, outside pyplot); default a new
     pyplot figure.  ``t_zoom`` (s): the y axes are scaled to the curves after ``t_zoom`` (the
     first seconds, with the 10 m prior sigma of the position, would flatten everything else).
     """
@@ -212,7 +229,14 @@ class CalibrationDemoFigure:
         self.legend = self.axes[0].legend(loc="upper right", ncol=3, fontsize=8)
         self.axes[-1].set_xlabel("time $t$ [s]")
         self.fig.subplots_adjust(left=0.1, right=0.98, bottom=0.08, top=0.94, hspace=0.3)
-        self.spans = []
+        # the outage shading, one per panel, moved by update (hidden without an outage); zorder between the
+        # axes' grid (1.5) and the lines (2), so it is drawn after the kept x axes
+        self._shades = [ax.axvspan(0.0, 0.0, color="C1", alpha=0.2, lw=0, zorder=1.6, visible=False)
+                        for ax in self.axes]
+        self.spans = []  #: the outage shading drawn (one per panel, or none without an outage)
+        # the x axes (time, ticks, grid, label) only change with the time span: drawn once
+        self.background = CachedBackground(self.fig, [ax.xaxis for ax in self.axes],
+                                           key=lambda: tuple(ax.get_xlim() for ax in self.axes))
 
     def update(self, demo: CalibrationDemo):
         """Draw ``demo`` into the figure; returns the Figure."""
@@ -223,9 +247,12 @@ class CalibrationDemoFigure:
         zoom = f"; y zoomed past t = {self.t_zoom:g} s" if late_fix.any() and self.t_zoom > demo.t[0] else ""
         if not late_fix.any():
             late, late_fix = np.ones_like(late), np.ones_like(late_fix)
-        for span in self.spans:
-            span.remove()
-        self.spans = []
+        for shade in self._shades:
+            shade.set_visible(demo.outage is not None)
+            if demo.outage is not None:
+                shade.set_x(demo.outage[0])
+                shade.set_width(demo.outage[1] - demo.outage[0])
+        self.spans = list(self._shades) if demo.outage is not None else []
         for k, (ax, (err, up, down, ens_up, ens_down)) in enumerate(zip(self.axes, self.lines)):
             s2, e2 = 2 * demo.sigma[:, k], 2 * demo.ens_std[:, k]
             err.set_data(demo.t, demo.error[:, k])
@@ -235,8 +262,6 @@ class CalibrationDemoFigure:
             ens_down.set_data(demo.t_gps, -e2)
             top = max(s2[late].max(), e2[late_fix].max(), np.abs(demo.error[late, k]).max())
             ax.set_ylim(-1.15 * top, 1.15 * top)
-            if demo.outage is not None:
-                self.spans.append(ax.axvspan(*demo.outage, color="C1", alpha=0.2, lw=0))
         self.axes[0].set_xlim(demo.t[0], demo.t[-1])
         self.legend.get_texts()[2].set_text(f"ensemble $\\pm 2s$ ({demo.n_runs} runs)")
         lo, hi = demo.ratio_band
@@ -249,6 +274,11 @@ class CalibrationDemoFigure:
                                 f"of (fix, state) pairs{zoom}",
                                 fontsize=9, fontweight="normal")
         return self.fig
+
+    def draw(self):
+        """Render the figure onto its Agg canvas, x axes kept from the first render; returns the Figure
+        (then ``kfcal_helpers.demos.figure_png(fig, drawn=True)``)."""
+        return self.background.draw()
 
 
 def draw_calibration_demo(demo: CalibrationDemo, t_zoom: float = 2.0):

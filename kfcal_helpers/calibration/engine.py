@@ -32,7 +32,8 @@ from .simulation import Simulation
 
 __all__ = ["filter_model", "matrix_powers", "accumulated_noise", "between_fixes", "Covariances",
            "covariance_sequence", "filter_estimates", "estimate_between_fixes", "sample_noise_at_fixes",
-           "sample_noise_time_major", "noise_of_simulation", "filter_errors_at_fixes", "filter_errors_time_major"]
+           "sample_noise_time_major", "unit_noise_time_major", "scale_unit_noise", "noise_of_simulation",
+           "filter_errors_at_fixes", "filter_errors_time_major"]
 
 
 def filter_model(params: CalibrationParams, model: ErrorStateModel | None = None) -> ErrorStateModel:
@@ -214,19 +215,42 @@ def sample_noise_at_fixes(params: CalibrationParams, n_runs: int, seed):
 
 
 def sample_noise_time_major(params: CalibrationParams, n_runs: int, seed):
-    """:func:`sample_noise_at_fixes` with time-major ``w_t`` (n_gps - 1, n, 3) and ``eta_t`` (n_gps, n, 2)."""
-    m = filter_model(params)
+    """:func:`sample_noise_at_fixes` with time-major ``w_t`` (n_gps - 1, n, 3) and ``eta_t`` (n_gps, n, 2):
+    :func:`scale_unit_noise` of :func:`unit_noise_time_major`."""
+    require_instance("params", params, CalibrationParams)
+    return scale_unit_noise(params, *unit_noise_time_major(params.n_gps, n_runs, seed))
+
+
+def unit_noise_time_major(n_gps: int, n_runs: int, seed):
+    """The standard normal draws behind :func:`sample_noise_time_major`, in its order: ``z0``
+    (n_runs, 3), ``z`` (n_gps - 1, n_runs, 2), ``zeta`` (n_gps, n_runs, 2), from ``seed`` (int or
+    Generator).  They do not depend on the noise levels, only on the number of fixes ``n_gps`` (>= 1)
+    and of realizations, so a caller may keep them across parameter changes (the live demo does)."""
+    n_gps = require_int("n_gps", n_gps, minimum=1)
     n_runs = require_int("n_runs", n_runs, minimum=1)
     rng = as_generator("seed", seed)
+    return (rng.standard_normal((n_runs, 3)), rng.standard_normal((n_gps - 1, n_runs, 2)),
+            rng.standard_normal((n_gps, n_runs, 2)))
+
+
+def scale_unit_noise(params: CalibrationParams, z0, z, zeta):
+    """The draws of :func:`sample_noise_time_major` from its standard normals
+    (:func:`unit_noise_time_major`): ``e0 = z0 sqrt(diag M0)``, ``w_t = L z`` with ``L L^T`` the
+    (p, v) block of ``Q_r`` (zero bias part), ``eta_t = zeta sqrt(diag V)``.  Returns
+    ``e0`` (n_runs, 3), ``w_t`` (n_gps - 1, n_runs, 3), ``eta_t`` (n_gps, n_runs, 2), new arrays."""
+    m = filter_model(params)
     n_gps = params.n_gps
+    z0 = require_shape("z0", z0, (None, 3))
+    n_runs = z0.shape[0]
+    z = require_shape("z", z, (n_gps - 1, n_runs, 2))
+    zeta = require_shape("zeta", zeta, (n_gps, n_runs, 2))
     Qr = between_fixes(params, m)[1][-1]
     L = np.linalg.cholesky(Qr[:2, :2])  # Q_r is zero in the bias row and column: factor the (p, v) block
-    e0 = rng.standard_normal((n_runs, 3)) * np.sqrt(np.diag(m.M0))
-    z = rng.standard_normal((n_gps - 1, n_runs, 2))
+    e0 = z0 * np.sqrt(np.diag(m.M0))
     w_t = np.zeros((n_gps - 1, n_runs, 3))
-    w_t[..., 0] = L[0, 0] * z[..., 0]
+    np.multiply(z[..., 0], L[0, 0], out=w_t[..., 0])
     w_t[..., 1] = L[1, 0] * z[..., 0] + L[1, 1] * z[..., 1]
-    eta_t = rng.standard_normal((n_gps, n_runs, 2)) * np.sqrt(np.diag(m.V))
+    eta_t = zeta * np.sqrt(np.diag(m.V))
     return e0, w_t, eta_t
 
 

@@ -9,9 +9,12 @@ computed the same way.  Each exercise is one :class:`~kfcal_helpers.exercises.Ex
 (id, praise, generic hint, the hint of each recognised mistake), defined right above its check;
 :data:`EXERCISES` lists them by id.
 
-A check never raises because of the answer: a placeholder (``None`` or ``...``) gives
-"not answered yet", a malformed answer (a string, a wrong shape, a function that raises)
-gives a hint.  Bad *settings* raise ``ValueError`` naming the setting.
+A check never raises or warns because of the answer: a placeholder (``None`` or ``...``) gives
+"not answered yet", a malformed answer (a string, a wrong shape, a complex number, an integer too
+large for a float, NaN, a function that raises) gives a one-line hint.  Bad *settings* raise
+``ValueError`` naming the setting.  One answer-format rule for every exercise
+(:data:`~kfcal_helpers.exercises.FORMAT_RULE`): pass the value you computed, with no rounding; the
+tolerances below are float-level, or, where stated, accept a documented approximation.
 
 Exercise ids are ``"NN.k"``: notebook NN, exercise k.  Worked solutions are in
 ``notebooks/solutions/NN_*.ipynb``.
@@ -71,17 +74,14 @@ __all__ = [
 # ----------------------------------------------------------------------------------------
 def _numeric(ex: Exercise, answer, expected, wrong=(), *, rtol: float = 1e-6, atol: float = 1e-12,
              placeholder: str = PLACEHOLDER) -> Feedback:
-    """``ex.judge`` with ``wrong`` as ``(mistake key, value)`` pairs, plus the answers judge() would
-    misread: strings, functions, non-finite numbers and transposed matrices."""
+    """``ex.judge`` with ``wrong`` as ``(mistake key, value)`` pairs, plus the answer judge() would
+    misread: a matrix of the right size but another shape (transposed or flat).  Everything that is
+    not real finite numbers is judge()'s (the harness screens it in one place)."""
     if unanswered(answer):
         return ex.unanswered(placeholder)
-    if isinstance(answer, (str, bytes)) or callable(answer):
-        return ex.feedback(False, f"expected numbers, got {type(answer).__name__}")
     e = np.asarray(expected, dtype=float)
     a = as_array(answer)
-    if a is not None:
-        if not np.all(np.isfinite(a)):
-            return ex.feedback(False, "your answer contains NaN or inf")
+    if a is not None and np.all(np.isfinite(a)):
         if e.ndim == 2 and a.size == e.size and np.squeeze(a).shape != e.shape:
             return ex.feedback(False, f"expected shape {e.shape}, got {a.shape}")
     return ex.judge(answer, expected, [(v, k) for k, v in wrong], rtol=rtol, atol=atol, placeholder=placeholder)
@@ -134,6 +134,8 @@ _EULER_VELOCITY_GAP = Exercise(
         "omega": "use the exercise's ω = 0.8 rad/s, not the notebook's default 0.2 rad/s",
         "hertz": "ω is an angular frequency in rad/s: a(t) = A sin(ωt), with no 2π",
         "position": "that is the position formula; the velocity difference involves the acceleration a(t)",
+        "bound": "that is the largest velocity difference over the run, (Δt/2)A; the exercise asks for its value "
+                 "at t = 10 s",
     },
 )
 
@@ -152,7 +154,8 @@ def check_euler_velocity_gap(answer, *, omega: float = 0.8, t: float = 10.0) -> 
     dt, A = p.dt, p.A
     approx = lambda w: dt / 2 * A * np.sin(w * t)  # noqa: E731  (a(0) = 0)
     wrong = [("sign", -_velocity_gap(p, t)), ("no_half", 2 * approx(omega)), ("omega", approx(0.2)),
-             ("hertz", approx(2 * np.pi * omega)), ("position", dt / 2 * A / omega * (1 - np.cos(omega * t)))]
+             ("hertz", approx(2 * np.pi * omega)), ("position", dt / 2 * A / omega * (1 - np.cos(omega * t))),
+             ("bound", dt / 2 * A)]
     return _numeric(_EULER_VELOCITY_GAP, answer, _velocity_gap(p, t), wrong, rtol=5e-3)
 
 
@@ -208,8 +211,8 @@ def _euler_variant(a, p0, v0, dt, kind: str):
 _EULER_TRUTH = Exercise(
     "01.3",
     praise="your recursion is the Euler truth (and the IMU mechanization) of the notebook",
-    hint="compare your recursion with the notebook's: v(t_{j+1}) = v(t_j) + a(t_j)Δt, p(t_{j+1}) = p(t_j) + "
-         "v(t_j)Δt + a(t_j)Δt²/2",
+    hint="compare your recursion with the notebook's Euler truth, term by term: which samples of a and v does each "
+         "step use, and with which powers of Δt?",
     hints={
         "new_v": "the position step uses the velocity at t_j (before the update), not v(t_{j+1})",
         "no_acc": "the position step is missing the acceleration term a(t_j)Δt²/2",
@@ -260,7 +263,8 @@ def check_euler_truth(func) -> Feedback:
 _IMU_DRIFT = Exercise(
     "02.1",
     praise="the bias drift is linear in velocity and quadratic in position",
-    hint="δv(t) = δv0 - b t and δp(t) = δp0 + δv0 t - b t²/2 (bias only, no noise): check each term",
+    hint="integrate the bias once for δv and twice for δp, starting from the initial errors (bias only, no noise), "
+         "and check each term and its sign",
     hints={
         "sign": "check the sign of the bias terms: a positive bias makes the IMU over-read, so p_c and v_c run "
                 "ahead of the truth",
@@ -287,7 +291,8 @@ def check_imu_drift(answer, *, b: float = 0.05, dp0: float = 2.0, dv0: float = -
 _IMU_RANDOM_WALK = Exercise(
     "02.2",
     praise="the random walk grows like √t in velocity and t^(3/2) in position",
-    hint="σ_v² = n W Δt² and σ_p² = W Δt⁴ Σ(m + 1/2)² with n = t/Δt steps; check Δt and n",
+    hint="build both variances from the per-sample variance W, the exercise's Δt and the number of noise samples "
+         "before t, as in the notebook's derivation; then take square roots",
     hints={
         "variance": "these are variances: the exercise asks for standard deviations",
         "rate": "use the exercise's IMU rate (100 Hz): Δt changes, W is per sample",
@@ -346,7 +351,8 @@ def check_imu_std_band(answer, *, sigma: float = 0.02, n: int = 50, alpha: float
              ("variance", sigma**2 * chi2_average_bounds(1, n - 1, alpha)),
              ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, one_sided=True))),
              ("no_divide", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, divide_by=1))),
-             ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * (n - 1))))]
+             ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * (n - 1)))),
+             ("normal", sigma * (1 + np.array([-1.96, 1.96]) / np.sqrt(2 * (n - 1))))]  # with the usual 1.96
     return _numeric(_IMU_STD_BAND, answer, right, wrong)
 
 
@@ -383,7 +389,8 @@ def check_gps_fix_indices(answer, *, gps_rate: float = 4.0) -> Feedback:
 _GPS_DZ = Exercise(
     "03.2",
     praise="that is what the filter sees: GPS minus dead reckoning",
-    hint="δz = z - [p_c, v_c]: compare term by term",
+    hint="the filter's measurement compares the GPS fix with what the IMU alone says: check which quantities it "
+         "uses and in which order",
     hints={
         "sign": "δz is the GPS minus the IMU dead reckoning, not the other way round",
         "swapped": "give [δz_p, δz_v] in this order: position first",
@@ -432,7 +439,8 @@ def check_gps_rms_band(answer, *, sigma: float = 0.04, n: int = 100, alpha: floa
     wrong = [("n_minus_1", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha))),
              ("variance", sigma**2 * chi2_average_bounds(1, n, alpha)),
              ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n, alpha, one_sided=True))),
-             ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * n)))]
+             ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * n))),
+             ("normal", sigma * (1 + np.array([-1.96, 1.96]) / np.sqrt(2 * n)))]  # with the usual 1.96
     return _numeric(_GPS_RMS_BAND, answer, right, wrong)
 
 
@@ -472,12 +480,15 @@ def check_phi_100hz(answer, *, imu_rate: float = 100.0) -> Feedback:
     return _numeric(_PHI_100HZ, answer, right, wrong)
 
 
+#: the praise of 04.2 for -Γ: the same Q, so also right
+GAMMA_OTHER_SIGN_PRAISE = ("Γ at 100 Hz, with the opposite sign of the notebook's: w is zero-mean white noise, so -w is "
+                           "the same noise and Q = W Γ Γᵀ is unchanged; either sign is right")
+
 _GAMMA_100HZ = Exercise(
     "04.2",
     praise="Γ at 100 Hz",
     hint="Γ holds the coefficients of w_j in the recursions of δp, δv and b",
     hints={
-        "signs": "the noise w enters like the bias: with a minus sign (a_c = a + b + w)",
         "dt_first": "the position effect of w over one step is Δt²/2, not Δt",
         "no_half": "the position effect of w over one step is Δt²/2, with the 1/2",
         "rate": "use the exercise's IMU rate (100 Hz), so Δt changes",
@@ -488,18 +499,24 @@ _GAMMA_100HZ = Exercise(
 
 def check_gamma_100hz(answer, *, imu_rate: float = 100.0) -> Feedback:
     """Exercise 04.2: the noise input vector Γ, shape (3,) (or (3, 1)), of the error-state model
-    for an IMU at ``imu_rate`` Hz."""
+    for an IMU at ``imu_rate`` Hz.  -Γ is accepted too (the same Q = W Γ Γᵀ), with a praise that says so."""
     dt = 1.0 / require_positive("imu_rate", imu_rate)
     right = error_state_model(CalibrationParams(imu_rate=imu_rate, gps_rate=imu_rate / 20)).Gamma
-    wrong = [("signs", -right), ("dt_first", [-dt, -dt, 0.0]), ("no_half", [-dt**2, -dt, 0.0]),
+    wrong = [("dt_first", [-dt, -dt, 0.0]), ("no_half", [-dt**2, -dt, 0.0]),
              ("rate", [-0.005**2 / 2, -0.005, 0.0]), ("bias_noise", [-dt**2 / 2, -dt, 1.0])]
-    return _numeric(_GAMMA_100HZ, answer, right, wrong)
+    fb = _numeric(_GAMMA_100HZ, answer, right, wrong)
+    if fb.correct or fb.message != _GAMMA_100HZ.hint:
+        return fb
+    # -Γ gives the same Q: right too (and its mistakes are the same mistakes)
+    flipped = replace(_GAMMA_100HZ, praise=GAMMA_OTHER_SIGN_PRAISE)
+    other = _numeric(flipped, answer, -right, [(k, -np.asarray(v, dtype=float)) for k, v in wrong])
+    return other if other.correct or other.message != _GAMMA_100HZ.hint else fb
 
 
 _PHI_FIX_TO_FIX = Exercise(
     "04.3",
     praise="the fix-to-fix transition: a constant bias over s seconds shifts δv by -b s and δp by -b s²/2",
-    hint="Φ^k = [[1, kΔt, -(kΔt)²/2], [0, 1, -kΔt], [0, 0, 1]]; check k and Δt",
+    hint="multiply Φ by itself k times (or think of what a constant bias does over kΔt seconds); check k and Δt",
     hints={
         "linear": "Φ^k is not I + k(Φ - I): the bias acts on δv, which then acts on δp, so the corner grows like "
                   "(kΔt)²/2",
@@ -570,29 +587,30 @@ def _predict(x, P, Phi, Q, n, transposed=False, q=True):
 _PREDICT_ONLY = Exercise(
     "05.1",
     praise="your predict-only loop matches filterpy's predict()",
-    hint="repeat n times: x ← Φ x, P ← Φ P Φᵀ + Q",
+    hint="each of the n steps is one filterpy predict(): compare what it does to x̄ and to M with your loop",
     hints={
-        "no_q": "P also grows by the process noise Q at every step",
-        "transposed": "the covariance step is Φ P Φᵀ (Φ on the left), not Φᵀ P Φ",
-        "x_static": "the estimate is predicted too: x ← Φ x at every step",
+        "no_q": "M also grows by the process noise Q at every step",
+        "transposed": "the covariance step is Φ M Φᵀ (Φ on the left), not Φᵀ M Φ",
+        "x_static": "the estimate is predicted too: x̄ ← Φ x̄ at every step",
         "one_short": "your loop runs one step too few: n steps means n predictions",
         "one_long": "your loop runs one step too many: n steps means n predictions",
         "q_once": "Q is added at every step, not once at the end",
-        "p_static": "P must be propagated as well: P ← Φ P Φᵀ + Q at every step",
-        "tuple": "return a tuple (x, P): x of shape (3,) or (3, 1), P of shape (3, 3)",
+        "p_static": "the covariance must be propagated as well: M ← Φ M Φᵀ + Q at every step",
+        "tuple": "return a tuple (x, M): x of shape (3,) or (3, 1), M of shape (3, 3)",
     },
 )
 
 
 def check_predict_only(func) -> Feedback:
-    """Exercise 05.1: ``func(x, P, Phi, Q, n) -> (x, P)`` after ``n`` predict-only steps.
+    """Exercise 05.1: ``func(x, M, Phi, Q, n) -> (x, M)`` after ``n`` predict-only steps (M the covariance,
+    the a priori one after the first step).
 
-    Called with the defaults' Φ, Q, x = [1, -0.5, 0.02] (m, m/s, m/s²), a full P (the filter's
-    at the fix t = 2 s) and n = 40; x may come back as (3,) or (3, 1), P as (3, 3).
+    Called with the defaults' Φ, Q, x = [1, -0.5, 0.02] (m, m/s, m/s²), a full covariance (the filter's
+    a posteriori P at the fix t = 2 s) and n = 40; x may come back as (3,) or (3, 1), M as (3, 3).
     """
     ex = _PREDICT_ONLY
     x0, P0, Phi, Q, n = _predict_test()
-    out, fb = _call_once(ex, func, "predict_only(x, P, Phi, Q, n)", (x0.copy(), P0.copy(), Phi.copy(), Q.copy(), n))
+    out, fb = _call_once(ex, func, "predict_only(x, M, Phi, Q, n)", (x0.copy(), P0.copy(), Phi.copy(), Q.copy(), n))
     if fb is not None:
         return fb
     pair = _pair(out)
@@ -612,9 +630,9 @@ def check_predict_only(func) -> Feedback:
         if _close(x, xw, **tol) and _close(P, Pw, **tol):
             return ex.mistake(key)
     if _close(x, x_ok, **tol):
-        return ex.feedback(False, "x is right, P is not: " + ex.hint)
+        return ex.feedback(False, "x̄ is right, M is not: " + ex.hint)
     if _close(P, P_ok, **tol):
-        return ex.feedback(False, "P is right, x is not: " + ex.hint)
+        return ex.feedback(False, "M is right, x̄ is not: " + ex.hint)
     return ex.feedback(False)
 
 
@@ -625,12 +643,14 @@ def _gain(P, H, V):
 _FIRST_GAIN = Exercise(
     "05.2",
     praise="the first gain: a diagonal prior gives a gain that ignores the bias",
-    hint="K = M0 Hᵀ (H M0 Hᵀ + V)⁻¹ with the exercise's V",
+    hint="at the first fix nothing has been predicted yet: form the gain of notebook 05 from the prior M0 and the "
+         "exercise's V, and check each factor",
     hints={
         "default_v": "use the exercise's GPS noise V = diag(4, 0.01), not the notebook's",
         "swapped": "the variances are swapped: V[0,0] is the position variance (m²), V[1,1] the velocity one ((m/s)²)",
-        "no_p_in_s": "the innovation covariance is S = H P Hᵀ + V: the prior uncertainty is in S too",
-        "no_p": "K = P Hᵀ S⁻¹: the prior covariance P multiplies Hᵀ S⁻¹",
+        "no_p_in_s": "the innovation covariance is S = H M Hᵀ + V (M the a priori covariance): the prior "
+                     "uncertainty is in S too",
+        "no_p": "K = M Hᵀ S⁻¹: the a priori covariance M multiplies Hᵀ S⁻¹",
         "shape": "K maps a measurement (2) to a state correction (3): shape (3, 2)",
     },
 )
@@ -656,12 +676,18 @@ def check_first_gain(answer, *, V=((4.0, 0.0), (0.0, 0.01))) -> Feedback:
 _SECOND_GAIN = Exercise(
     "05.3",
     praise="the second gain: after 0.2 s of prediction the bias row is no longer zero",
-    hint="update M0 at t = 0, predict P to the next fix, then K = P Hᵀ (H P Hᵀ + V)⁻¹",
+    hint="follow the filter: the first fix's update, the prediction steps to the next fix, then the gain as in 05.2",
     hints={
+        "once_per_fix": "one predict call per fix is one IMU step: between two fixes the filter predicts once per IMU "
+                        "sample, with the 200 Hz Φ and Q",
+        "fix_phi_one_q": "the fix-to-fix Φ^k carries P over the interval, but each of its k IMU steps adds its own "
+                         "process noise Q (carried on by the later steps), not one Q for the whole interval",
         "one_short": "count the predictions from one fix to the next: every IMU step, the one onto the fix included",
         "one_long": "one prediction too many: 40 IMU steps separate two fixes at 200 Hz / 5 Hz",
         "no_q": "P grows by the process noise Q at every predict step",
         "no_first_update": "predict from the a posteriori P of the first fix (after its update), not from M0",
+        "first_gain": "that is the gain at the first fix (t = 0, exercise 05.2); the exercise asks for the one at the "
+                      "second fix, after the first update and 0.2 s of prediction",
     },
 )
 
@@ -681,7 +707,10 @@ def check_second_gain(answer) -> Feedback:
         return _gain(_predict(np.zeros(3), P, m.Phi, m.Q, n, q=q)[1], H, V)
 
     wrong = [("one_short", gain_after(P0, r - 1)), ("one_long", gain_after(P0, r + 1)),
-             ("no_q", gain_after(P0, r, q=False)), ("no_first_update", gain_after(m.M0, r))]
+             ("no_q", gain_after(P0, r, q=False)), ("no_first_update", gain_after(m.M0, r)),
+             ("once_per_fix", gain_after(P0, 1)), ("first_gain", K0)]
+    F = phi_power(params, r)
+    wrong.append(("fix_phi_one_q", _gain(F @ P0 @ F.T + m.Q, H, V)))
     return _numeric(_SECOND_GAIN, answer, right, wrong)
 
 
@@ -718,12 +747,14 @@ def check_mc_nis_bounds(answer, *, n_runs: int = 50, alpha: float = 0.05) -> Fee
 _FISHER_BAND = Exercise(
     "06.2",
     praise="Fisher's z makes the band of a correlation symmetric and of known width",
-    hint="tanh(atanh ρ ± z_{0.975}/√(N - 3))",
+    hint="build the band where it is symmetric (Fisher's z of ρ, with its standard error), then transform back",
     hints={
         "sqrt_n": "the standard error of Fisher's z is 1/√(N - 3), not 1/√N",
         "linear": "the band is symmetric in z = atanh ρ, not in ρ: transform, add ± z_q/√(N - 3), transform back",
         "z_space": "transform the band back to a correlation with tanh",
         "one_sided": "a two-sided 95 % band uses the 97.5 % normal quantile (1.96)",
+        "z_rounded": "right method, but with the normal quantile rounded: compute it (scipy.stats.norm.ppf), and "
+                     "pass the value you computed, with no rounding",
     },
 )
 
@@ -742,6 +773,8 @@ def check_fisher_band(answer, *, rho: float = 0.8, n_runs: int = 300, alpha: flo
     wrong = [("sqrt_n", np.tanh(np.arctanh(rho) + pm * z / np.sqrt(N))), ("linear", rho + pm * z / np.sqrt(N - 3)),
              ("z_space", np.arctanh(rho) + pm * z / np.sqrt(N - 3)),
              ("one_sided", np.tanh(np.arctanh(rho) + pm * stats.norm.ppf(1 - alpha) / np.sqrt(N - 3)))]
+    for digits in (2, 3):  # 1.96 or 1.960 typed for the quantile
+        wrong.append(("z_rounded", np.tanh(np.arctanh(rho) + pm * round(z, digits) / np.sqrt(N - 3))))
     return _numeric(_FISHER_BAND, answer, right, wrong)
 
 
@@ -822,7 +855,7 @@ _TRAPEZOID_TEST = (np.array([0.3, 1.2, -0.7, 2.5, 0.0, -1.1, 0.8, 1.9]), 100.0, 
 _TRAPEZOID_VELOCITY = Exercise(
     "07.2",
     praise="the trapezoidal mechanization",
-    hint="v[0] = v0 and v[j+1] = v[j] + (Δt/2)(a_c[j] + a_c[j+1])",
+    hint="each step adds the area under a_c between two samples: the trapezoid uses both end samples",
     hints={
         "left": "that is the left Riemann sum again: the trapezoid averages a_c(t_j) and a_c(t_{j+1})",
         "right": "that is the right Riemann sum: the trapezoid averages a_c(t_j) and a_c(t_{j+1})",
@@ -871,14 +904,13 @@ _MISMATCH_FAILURES = Exercise(
     praise="a filter that believes its IMU is quieter than it is claims too small a P",
     hint="run the Monte Carlo of the exercise and read the verdict column",
     hints={
-        "mean_error": "mean_error does not fail: a wrong noise variance changes the gains, not the mean, so the "
-                      "estimate stays unbiased",
-        "orthogonality": "orthogonality does not fail here: the gain is suboptimal but the effect on the "
-                         "error-estimate correlation is too small for 1000 runs to detect",
-        "residual": "the residual checks do not fail: S = H P⁻ Hᵀ + V is dominated by the GPS noise V, which the "
-                    "filter knows exactly",
+        "extra": "at least one check in your set passes in that run: for each, ask whether a filter that believes "
+                 "its IMU is quieter than it is changes what the check compares (a mean, a spread against P, the "
+                 "residuals against S), and by enough for 1000 runs to see",
         "missing": "something is missing: a filter that believes its IMU is quieter than it is claims too small a "
                    "P; which checks compare the error's spread with P?",
+        "mixed": "your set holds a check that passes and misses one that fails: run the Monte Carlo of the exercise "
+                 "and read the verdict column",
         "unknown": "use the names of CHECK_NAMES (kfcal_helpers.calibration.CHECK_NAMES)",
         "type": "give a set of check names (strings), e.g. {'name_1', 'name_2'}",
     },
@@ -906,12 +938,9 @@ def check_mismatch_failures(answer, *, w_factor: float = 0.01, n_runs: int = 100
     expected = _mismatch_failures(w_factor, n_runs, seed)
     if names == expected:
         return ex.feedback(True)
-    for name in sorted(names - expected):
-        key = "residual" if name.startswith("residual") or name == "nis" else name
-        if key in ex.hints:
-            return ex.mistake(key)
-        return ex.feedback(False, f"{name} does not fail: {ex.hint}")
-    return ex.mistake("missing")
+    # never name which check is wrong (that would solve the exercise by elimination)
+    extra, missing = names - expected, expected - names
+    return ex.mistake("mixed" if extra and missing else "extra" if extra else "missing")
 
 
 # ----------------------------------------------------------------------------------------
@@ -920,7 +949,7 @@ def check_mismatch_failures(answer, *, w_factor: float = 0.01, n_runs: int = 100
 _OUTAGE_MASK = Exercise(
     "15.1",
     praise="a half-open window: the fix at t_s is missing, the one at t_e is back",
-    hint="a fix at time t is missing when t_s <= t < t_e for one of the windows",
+    hint="one entry per GPS fix: check which end of each window is inside it, and what True means",
     hints={
         "closed": "the window is half-open, t_s <= t < t_e: the fix at t_e is the first one back",
         "open_start": "the window is half-open, t_s <= t < t_e: the fix at t_s is already missing",
@@ -1007,6 +1036,8 @@ _BATCH_TWO_FIXES = Exercise(
         "sign": "conditioning reduces the covariance: Σ_xx MINUS Σ_xz Σ_zz⁻¹ Σ_zx",
         "prior": "that is the covariance before the fix at 0.2 s is used (the filter's a priori P)",
         "unconditioned": "that is Π_1, the covariance before any conditioning",
+        "no_q_sum": "close, but a difference of method: Π_1 lacks the process noise that the IMU steps between the "
+                    "two fixes add (each step adds Q, carried on by Φ); propagate Π_0 step by step",
     },
 )
 
@@ -1027,6 +1058,10 @@ def check_batch_two_fixes(answer) -> Feedback:
     wrong = [("only_last", _condition(Pi1, Pi1 @ H.T, H @ Pi1 @ H.T + V)),
              ("sign", Pi1 + Sxz @ np.linalg.solve(Czz + np.kron(np.eye(2), V), Sxz.T)),
              ("prior", covariance_sequence(params)[1][1]), ("unconditioned", Pi1)]
+    Pi1_no_q = F @ Pi0 @ F.T  # Φ^40 Π_0 Φ^40ᵀ without the sum of the 40 steps' process noise
+    Czz_no_q = np.block([[H @ Pi0 @ H.T, H @ C10.T @ H.T], [H @ C10 @ H.T, H @ Pi1_no_q @ H.T]])
+    wrong.append(("no_q_sum", _condition(Pi1_no_q, np.hstack([C10 @ H.T, Pi1_no_q @ H.T]),
+                                         Czz_no_q + np.kron(np.eye(2), V))))
     with np.errstate(all="ignore"):
         try:
             wrong.append(("no_v", _condition(Pi1, Sxz, Czz)))
@@ -1082,10 +1117,13 @@ _FAILING_CHECKS_GPS_SIGMA = Exercise(
          "(dataclasses.replace(params, gps_pos_var=0.25))",
     hints={
         "type": "give a set of check names, e.g. {'nees', 'nis'}",
-        "mean_error": "the mean error cannot fail here: a linear filter with zero prior means is unbiased whatever "
-                      "its gains",
+        "extra": "at least one check in your set passes in that run: for each, ask what a filter that believes its "
+                 "GPS is twice as accurate as it is gets wrong (its gains, its P, its S) and whether that check "
+                 "compares it",
         "missing": "some failing checks are missing: list every check whose verdict is FAIL in your run, not only "
                    "the ones you expected",
+        "mixed": "your set holds a check that passes and misses one that fails: compare it with the verdict column "
+                 "of your own run",
     },
 )
 
@@ -1107,11 +1145,9 @@ def check_failing_checks_gps_sigma(answer, *, params: CalibrationParams | None =
     right = _failing_checks_gps_sigma(params)
     if given == right:
         return ex.feedback(True)
-    if "mean_error" in given:
-        return ex.mistake("mean_error")
-    if given < right:
-        return ex.mistake("missing")
-    return ex.feedback(False)
+    # never name which check is wrong (that would solve the exercise by elimination)
+    extra, missing = given - right, right - given
+    return ex.mistake("mixed" if extra and missing else "extra" if extra else "missing")
 
 
 _PHI02_COUPLING_CHANGE = Exercise(
@@ -1146,8 +1182,8 @@ def check_phi02_coupling_change(answer, *, steps: int = 200, params: Calibration
 # ----------------------------------------------------------------------------------------
 # 17 live demo
 # ----------------------------------------------------------------------------------------
-_RTOL_17_1 = 1e-4  # sigmas from two or three inverse variances: 4 significant digits
-_RTOL_BAND = 5e-5  # s/σ band: the N vs N-1 and normal-approximation mistakes differ by 1e-4
+_RTOL_17_1 = 1e-9  # sigmas from two or three inverse variances: the computed values (no rounding)
+_RTOL_BAND = 1e-9  # s/σ band: the computed quantiles (the N vs N-1 and normal-approximation mistakes differ by 1e-4)
 
 
 
@@ -1250,9 +1286,9 @@ def check_demo_ratio_band(answer, *, n_runs: int = 200, alpha: float = 0.05) -> 
         (ratio_band(N + 1, alpha), "n_dof"),
         (right**2, "variance"),
         (np.sqrt(stats.chi2.ppf([alpha, 1 - alpha], N - 1) / (N - 1)), "one_sided"),
-        (1 + pm * z / np.sqrt(2 * (N - 1)), "normal"),
-        (1 + pm * z / np.sqrt(N), "mean_band"),
     ]
+    for zq in (z, 1.96):  # the approximations, with the exact quantile or the usual 1.96
+        pairs += [(1 + pm * zq / np.sqrt(2 * (N - 1)), "normal"), (1 + pm * zq / np.sqrt(N), "mean_band")]
     return ex.judge(answer, right, distinct_mistakes(pairs, right, _RTOL_BAND), rtol=_RTOL_BAND, atol=0.0)
 
 
@@ -1263,3 +1299,198 @@ EXERCISES = {ex.id: ex for ex in (
     _FIRST_GAIN, _SECOND_GAIN, _MC_NIS_BOUNDS, _FISHER_BAND, _SIMULTANEOUS_NEES_BAND, _APPARENT_BIAS,
     _TRAPEZOID_VELOCITY, _MISMATCH_FAILURES, _FAILING_CHECKS_GPS_SIGMA, _PHI02_COUPLING_CHANGE, _OUTAGE_MASK,
     _OUTAGE_SIGMA, _BATCH_TWO_FIXES, _SMOOTHED_BIAS_SIGMA, _DEMO_FIRST_FIX_SIGMA, _DEMO_RATIO_BAND)}
+
+
+# ----------------------------------------------------------------------------------------
+# 02 and 03: the data written as functions (the student builds what simulate() builds)
+# ----------------------------------------------------------------------------------------
+#: test input of the dead-reckoning exercise: IMU output a_c (3 realizations x 7 samples, m/s²),
+#: the prior means p_init (m), v_init (m/s), dt (s).  3 != 7, so an integration along the wrong axis shows.
+_DEAD_RECKON_TEST = (np.array([[0.5, -1.0, 2.0, 0.0, 3.0, -2.0, 1.5],
+                               [1.0, 1.0, -0.5, 0.25, 0.0, 2.0, -1.0],
+                               [-2.0, 0.5, 0.5, 1.5, -1.0, 0.0, 4.0]]), 1.0, 2.0, 0.1)
+
+
+def _reckon_variant(a_c, p_init, v_init, dt, kind: str = "ok"):
+    """The dead reckoning of ``a_c`` (n, n_t) along time by a plain loop, right or with one known mistake."""
+    if kind == "axis":  # integrated across the realizations (axis 0) instead of along time
+        p, v = _reckon_variant(a_c.T, p_init, v_init, dt)
+        return p.T, v.T
+    n, n_t = a_c.shape
+    p, v = np.empty((n, n_t)), np.empty((n, n_t))
+    p[:, 0] = p_init
+    v[:, 0] = v_init
+    for j in range(n_t - 1):
+        aj = a_c[:, j + 1] if kind == "right" else a_c[:, j]
+        v[:, j + 1] = v[:, j] + aj * dt
+        vel = v[:, j + 1] if kind == "new_v" else v[:, j]
+        acc = {"no_acc": 0.0, "dt2": aj * dt**2}.get(kind, aj * dt**2 / 2)
+        p[:, j + 1] = p[:, j] + vel * dt + acc
+    return p, v
+
+
+_DEAD_RECKON = Exercise(
+    "02.4",
+    praise="your loop is the IMU dead reckoning: the same numbers as the notebook's cumulative sums",
+    hint="compare your loop with the recursion: v_c[:, j+1] = v_c[:, j] + a_c[:, j] Δt, "
+         "p_c[:, j+1] = p_c[:, j] + v_c[:, j] Δt + a_c[:, j] Δt²/2, from p_c[:, 0] = p̄0, v_c[:, 0] = v̄0",
+    hints={
+        "new_v": "the position step uses the velocity at t_j (before the update), not the new velocity v_c[:, j+1]",
+        "no_acc": "the position step is missing the acceleration term a_c[:, j]Δt²/2",
+        "dt2": "the acceleration term of the position step is a_c[:, j]Δt²/2, with the 1/2",
+        "right": "left Riemann: the step from t_j to t_{j+1} uses a_c[:, j], not a_c[:, j+1]",
+        "axis": "a_c has one row per realization and one column per sample: integrate along the columns "
+                "(axis 1, time), each row on its own",
+        "swapped": "return (p_c, v_c) in this order: position first",
+        "shape": "p_c and v_c have the shape of a_c: one row per realization, one column per sample, starting "
+                 "with p_c[:, 0] = p̄0 and v_c[:, 0] = v̄0",
+        "tuple": "return a tuple (p_c, v_c) of two arrays",
+    },
+)
+
+
+def check_dead_reckoning(func) -> Feedback:
+    """Exercise 02.4: ``func(a_c, p_init, v_init, dt) -> (p_c, v_c)``, the IMU dead reckoning of
+    ``a_c`` (n, n_imu) m/s² from the prior means ``p_init`` (m) and ``v_init`` (m/s), each (n, n_imu).
+
+    Called on a test input of 3 realizations of 7 samples, p_init = 1 m, v_init = 2 m/s, dt = 0.1 s;
+    compared with :func:`~kfcal_helpers.calibration.integrate_left` (rtol 1e-9).
+    """
+    ex = _DEAD_RECKON
+    a_c, p_init, v_init, dt = _DEAD_RECKON_TEST
+    out, fb = _call_once(ex, func, "dead_reckon(a_c, p_init, v_init, dt)", (a_c.copy(), p_init, v_init, dt))
+    if fb is not None:
+        return fb
+    pair = _pair(out)
+    if pair is None:
+        return ex.mistake("tuple")
+    p, v = pair
+    if p.shape != a_c.shape or v.shape != a_c.shape:
+        return ex.mistake("shape")
+    p_ok, v_ok = integrate_left(a_c, p_init, v_init, dt)
+    if _close(p, p_ok) and _close(v, v_ok):
+        return ex.feedback(True)
+    if _close(p, v_ok) and _close(v, p_ok):
+        return ex.mistake("swapped")
+    for kind in ("right", "new_v", "no_acc", "dt2", "axis"):
+        pw, vw = _reckon_variant(a_c, p_init, v_init, dt, kind)
+        if _close(p, pw) and _close(v, vw):
+            return ex.mistake(kind)
+    if _close(v, v_ok):
+        return ex.feedback(False, "v_c is right, p_c is not: " + ex.hint)
+    return ex.feedback(False)
+
+
+#: test input of the IMU-output exercise: a (5 samples, m/s²), b (3 realizations, m/s²), w (3 x 5, m/s²)
+_IMU_OUTPUT_TEST = (np.array([0.0, 1.0, 2.0, -1.5, 0.5]), np.array([0.1, -0.2, 0.05]),
+                    np.array([[0.01, -0.02, 0.03, 0.0, -0.01],
+                              [0.02, 0.01, -0.03, 0.015, 0.0],
+                              [-0.01, 0.0, 0.02, -0.02, 0.03]]))
+
+_IMU_OUTPUT = Exercise(
+    "02.5",
+    praise="that is the IMU output a_c = a + b + w: one constant bias per realization, new noise at every sample",
+    hint="a_c[l, j] = a[j] + b[l] + w[l, j]: the truth of sample j, the bias of realization l, the noise of both",
+    hints={
+        "bias_sign": "the IMU reports the truth PLUS its bias: check the sign of b",
+        "noise_sign": "the IMU reports the truth plus the noise w, not minus it",
+        "no_bias": "the bias b is missing: every sample of realization l carries the same b[l]",
+        "no_noise": "the white noise w is missing",
+        "broadcast": "b has one entry per realization (rows of w): give it a column axis, b[:, None], before "
+                     "adding it to the (n, n_imu) array",
+        "shape": "a_c has one row per realization and one column per sample: the shape of w",
+    },
+)
+
+
+def check_imu_output(func) -> Feedback:
+    """Exercise 02.5: ``func(a, b, w) -> a_c``, the IMU output ``a_c[l, j] = a[j] + b[l] + w[l, j]`` (m/s²),
+    shape (n, n_imu), for ``a`` (n_imu,), ``b`` (n,) and ``w`` (n, n_imu).
+
+    Called on 3 realizations of 5 samples (3 != 5, so a bias added along the wrong axis shows).
+    """
+    ex = _IMU_OUTPUT
+    a, b, w = _IMU_OUTPUT_TEST
+    out, fb = _call_once(ex, func, "imu_output(a, b, w)", (a.copy(), b.copy(), w.copy()))
+    if fb is not None:
+        if fb.answered and "broadcast" in fb.message:
+            return ex.mistake("broadcast")
+        return fb
+    got = as_array(out)
+    if got is None or isinstance(out, (str, bytes)):
+        return ex.mistake("shape")
+    if got.shape != w.shape:
+        return ex.mistake("broadcast" if got.shape == w.T.shape else "shape")
+    right = a + b[:, None] + w
+    if _close(got, right):
+        return ex.feedback(True)
+    variants = [("bias_sign", a - b[:, None] + w), ("noise_sign", a + b[:, None] - w),
+                ("no_bias", a + w), ("no_noise", np.broadcast_to(a + b[:, None], w.shape))]
+    for key, value in variants:
+        if _close(got, value):
+            return ex.mistake(key)
+    return ex.feedback(False)
+
+
+#: test input of the GPS-measurement exercise: truth p (m), v (m/s) of 2 realizations x 13 samples, fixes on
+#: every 4th sample (0, 4, 8, 12: 4 fixes), the noise eta (2 x 4 x 2) [m, m/s]
+def _gps_test():
+    t = np.arange(13) * 0.5
+    p = np.stack([10.0 + 3.0 * t + 0.1 * t**2, -4.0 + 2.5 * t - 0.05 * t**2])
+    v = np.stack([3.0 + 0.2 * t, 2.5 - 0.1 * t])
+    eta = np.array([[[0.3, -0.02], [-1.1, 0.05], [0.4, 0.01], [0.9, -0.03]],
+                    [[-0.6, 0.04], [0.2, -0.01], [1.3, 0.02], [-0.7, 0.06]]])
+    return p, v, eta, 4
+
+
+_GPS_MEASUREMENT = Exercise(
+    "03.4",
+    praise="those are the GPS fixes z = [p, v] + η on every steps_per_fix-th IMU sample from 0, the last one included",
+    hint="z[l, i] = [p[l, j_i], v[l, j_i]] + eta[l, i] with j_i = i·steps_per_fix: the truth at the fix samples plus "
+         "the noise",
+    hints={
+        "count": "the fixes are the IMU samples 0, steps_per_fix, 2·steps_per_fix, … up to and including the last "
+                 "sample: pick as many samples as eta has fixes",
+        "swapped": "give [position, velocity] in this order along the last axis: z[..., 0] is the position",
+        "minus": "the GPS reports the truth PLUS its noise η",
+        "no_noise": "the noise η is missing: the GPS never sees the exact truth",
+        "axis": "stack position and velocity along the LAST axis: z has shape (n, n_gps, 2), like eta",
+        "shape": "z has the shape of eta, (n, n_gps, 2): one row per realization, one per fix, [p, v] last",
+    },
+)
+
+
+def check_gps_measurement(func) -> Feedback:
+    """Exercise 03.4: ``func(p, v, eta, steps_per_fix) -> z``, the GPS fixes
+    ``z[l, i] = [p[l, i s], v[l, i s]] + eta[l, i]`` (m, m/s), shape (n, n_gps, 2), for the truth
+    ``p``, ``v`` (n, n_imu), the noise ``eta`` (n, n_gps, 2) and ``s = steps_per_fix``.
+
+    Called on 2 realizations of 13 samples with a fix on every 4th sample (4 fixes).
+    """
+    ex = _GPS_MEASUREMENT
+    p, v, eta, r = _gps_test()
+    out, fb = _call_once(ex, func, "gps_measurement(p, v, eta, steps_per_fix)", (p.copy(), v.copy(), eta.copy(), r))
+    if fb is not None:
+        if fb.answered and "broadcast" in fb.message:
+            return ex.mistake("count")
+        return fb
+    got = as_array(out)
+    if got is None or isinstance(out, (str, bytes)):
+        return ex.mistake("shape")
+    n, n_gps, _ = eta.shape
+    if got.shape == (2, n, n_gps):
+        return ex.mistake("axis")
+    if got.shape != eta.shape:
+        return ex.mistake("count" if got.ndim == 3 and got.shape[::2] == (n, 2) else "shape")
+    truth = np.stack([p[:, ::r], v[:, ::r]], axis=-1)
+    if _close(got, truth + eta):
+        return ex.feedback(True)
+    variants = [("swapped", truth[..., ::-1] + eta), ("minus", truth - eta), ("no_noise", truth)]
+    for key, value in variants:
+        if _close(got, value):
+            return ex.mistake(key)
+    return ex.feedback(False)
+
+
+__all__ += ["check_dead_reckoning", "check_imu_output", "check_gps_measurement"]
+EXERCISES.update({e.id: e for e in (_DEAD_RECKON, _IMU_OUTPUT, _GPS_MEASUREMENT)})

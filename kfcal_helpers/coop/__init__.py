@@ -13,7 +13,10 @@ Modules:
 * :mod:`.filters` -- LKF, EKF, UKF on filterpy: ``run_xkf(y, setup, truth=None)`` with a
   :class:`FilterSetup` (params, Q, the :class:`MeasurementModel`, settings), :func:`run_filter` the
   short entry, a common :class:`FilterResult`;
-* :mod:`.montecarlo` -- truth-model tests (NEES/NIS with chi-square bounds);
+* :mod:`.batch` -- the same three filters on N realizations at once (filterpy's equations on
+  stacked arrays, proven equal to the per-run filters), for the Monte Carlo;
+* :mod:`.montecarlo` -- truth-model tests (NEES/NIS with chi-square bounds) through the shared
+  Monte Carlo core, and :func:`truth_model_draws` to redraw any of their runs;
 * :mod:`.data` -- course log loader/writer (CSV folder or ``.mat``); :mod:`.course` -- the
   ``KFCAL_COURSE_LOG`` setting;
 * :mod:`.plots` -- figures of the notebooks; :mod:`.tables` -- fixed-precision text output; :mod:`.cli` -- ``python -m kfcal_helpers coop``;
@@ -81,7 +84,8 @@ from .model import (
     wrap_measurement,
     wrap_state,
 )
-from .montecarlo import MonteCarloResult, truth_model_test
+from .batch import BatchResult, run_batch
+from .montecarlo import MonteCarloResult, TruthModelExperiment, truth_model_draws, truth_model_test
 from .simulation import DEFAULT_LOG_SEED, Simulation, simulate, simulate_measurements, simulate_truth
 from .tables import format_matrix, format_number, format_table
 
@@ -93,7 +97,7 @@ __all__ = [
     "CoopParams", "MeasurementModel", "StateDescriptor", "arc", "discretize", "dynamics", "jacobian_A", "jacobian_B", "jacobian_C", "measure", "measurement_mean",
     "measurement_residual", "nominal_trajectory", "observability_matrix", "state_add", "state_mean",
     "state_residual", "step", "wrap_angle", "wrap_measurement", "wrap_state",
-    "MonteCarloResult", "truth_model_test",
+    "BatchResult", "run_batch", "MonteCarloResult", "TruthModelExperiment", "truth_model_draws", "truth_model_test",
     "DEFAULT_LOG_SEED", "Simulation", "simulate", "simulate_measurements", "simulate_truth",
     "format_matrix", "format_number", "format_table", "PROBLEM",
 ]

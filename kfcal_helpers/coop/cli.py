@@ -6,6 +6,9 @@ Examples::
     python -m kfcal_helpers coop --filter ukf --log ../shared/data/coop_localization
     python -m kfcal_helpers coop --filter lkf --runs 50 --seed 1 --json
 
+A truth-model Monte Carlo (``--runs N``) keeps per-run arrays of 112 kB per run of 1001 steps; one
+that would need more than 500 MB (about 2,300 runs of 100 s) is refused with its estimate.
+
 The filter's process noise is ``Q = S * Qtrue`` (covariance of the DT noise ``w_k``, which enters
 the state through ``Omega = dt * I``).  By default S is the filter's scale tuned by the truth-model
 tests (``TUNED_Q_SCALE``, ``q_scale_source: "truth-model test"``), for a course log too: the NIS
@@ -25,7 +28,7 @@ from ..validation import MAX_SEED, cli_float, cli_int, require_int, require_posi
 from .data import load_log
 from .filters import FILTERS, TUNED_Q_SCALE, fit_q_scale, log_summary, run_filter
 from .model import CoopParams
-from .montecarlo import truth_model_test
+from .montecarlo import estimate_truth_model_test, truth_model_test
 from .simulation import DEFAULT_LOG_SEED, simulate
 
 __all__ = ["add_parser", "run", "log_summary", "Q_SCALE_LADDER", "parse_q_scale", "SOURCE_TEST", "SOURCE_FIT",
@@ -90,6 +93,9 @@ def run(args) -> int:
             raise ValueError("q-scale 'auto' fits Q to a log; a truth-model Monte Carlo needs a number or the default")
         params = CoopParams()
         scale = TUNED_Q_SCALE[args.filter] if q_scale is None else q_scale
+        # refused before any work (one line, exit 2) when the per-run arrays would exceed 500 MB
+        estimate_truth_model_test(params, runs, filter=args.filter, every=every, runs_name="--runs",
+                                  Q=scale * params.Qtrue)
         mc = truth_model_test(params, runs, 0 if args.seed is None else args.seed, filter=args.filter,
                               alpha=args.alpha, every=every, Q=scale * params.Qtrue)
         out = mc.summary()

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..consistency import chi2_bounds
-from ..demos import new_figure
+from ..demos import CachedBackground, new_figure
 from ..validation import require_choice, require_instance, require_positive, require_probability
 from .data import CoopLog
 from .filters import TUNED_Q_SCALE, measurement_subset, run_filter
@@ -122,7 +122,9 @@ def compute_coop_demo(log: CoopLog, filter: str = "ekf", q_scale: float | None =
 class CoopDemoFigure:
     """The cooperative-localization demo's figure, built once; :meth:`update` puts a new
     :class:`CoopDemo` into the same lines.  Six panels (UGV in the top row, UAV in the bottom
-    row): the estimation error and the filter's +-2 sigma bounds.  ``figure``: a matplotlib
+    row): the estimation error and the filter's +-2 sigma bounds.  :meth:`draw` renders it onto its Agg
+    canvas with the x axes kept from the first render (a :class:`kfcal_helpers.demos.CachedBackground`),
+    the same image as ``fig.canvas.draw()``.  ``figure``: a matplotlib
     Figure to draw into (e.g. ``Figure(figsize=LIVE_FIGSIZE)`` for the live view), else a new
     pyplot figure."""
 
@@ -140,6 +142,9 @@ class CoopDemoFigure:
             ax.set_xlabel("time $t$ [s]")
         self.axes[0, 0].legend(loc="upper right", fontsize=8)
         self.fig.subplots_adjust(left=0.08, right=0.975, bottom=0.1, top=0.86, wspace=0.4, hspace=0.12)
+        # the x axes (time, ticks, grid, label) only change with the log's time span: drawn once
+        self.background = CachedBackground(self.fig, [ax.xaxis for ax in self.axes.flat],
+                                           key=lambda: tuple(ax.get_xlim() for ax in self.axes.flat))
 
     def update(self, demo: CoopDemo):
         """Draw ``demo`` into the figure; returns the Figure."""
@@ -158,6 +163,11 @@ class CoopDemoFigure:
                           f"errors with ±2σ; time-averaged NIS {demo.nis_mean:.2f}, bounds [{lo:.2f}, {hi:.2f}] "
                           f"({demo.nis_dim} dof)", fontsize=10)
         return self.fig
+
+    def draw(self):
+        """Render the figure onto its Agg canvas, x axes kept from the first render; returns the Figure
+        (then ``kfcal_helpers.demos.figure_png(fig, drawn=True)``)."""
+        return self.background.draw()
 
 
 def draw_coop_demo(demo: CoopDemo):

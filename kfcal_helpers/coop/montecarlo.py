@@ -1,13 +1,21 @@
 """Truth-model tests: Monte Carlo NEES and NIS of any of the three filters.
 
 Each run draws a true initial state from N(x0, P0), simulates the truth with process
-noise Omega w_k, w_k ~ N(0, Qtrue) (Omega = dt I by default, ``params.noise_model``) and measurements with noise N(0, Rtrue)
-(:mod:`~kfcal_helpers.coop.simulation`), and runs the filterpy filter of
-:mod:`~kfcal_helpers.coop.filters` on it.  All runs are drawn up front from one
-seeded generator, so the result does not depend on ``workers``.
+noise Omega w_k, w_k ~ N(0, Qtrue) (Omega = dt I by default, ``params.noise_model``) and measurements with
+noise N(0, Rtrue) (:func:`~kfcal_helpers.coop.simulation.simulate`), and filters it with the batched
+filters of :mod:`~kfcal_helpers.coop.batch` (filterpy's equations on many runs at once, proven equal
+to the per-run filterpy filters of :mod:`~kfcal_helpers.coop.filters` in ``tests/test_coop_batch.py``).
 
-With N runs, the run-averaged NEES (dimension 6) and NIS (dimension 5, or the number of measurements used) of a
-consistent filter lie in ``[chi2(alpha/2, N n)/N, chi2(1 - alpha/2, N n)/N]`` at each
+The runs go through the shared Monte Carlo core :func:`kfcal_helpers.montecarlo.run`
+(:class:`TruthModelExperiment`): chunks of :data:`CHUNK_SIZE` runs, each drawn from its own
+generator of the core's seed policy (``SeedSequence(seed).spawn``, PCG64DXSM), on threads, added in
+chunk order, so the result does not depend on ``workers``.  :func:`truth_model_draws` redraws the
+truths and measurements of any run exactly, to re-run and plot it.  The core refuses, before any
+work, a test whose estimated peak memory exceeds 500 MB: the per-run arrays kept (NEES, NIS,
+errors, two-sigma bounds) take 112 kB per run of 1001 steps, so about 3,000 runs of 100 s fit.
+
+With N runs, the run-averaged NEES (dimension 6) and NIS (dimension 5, or the number of measurements
+used) of a consistent filter lie in ``[chi2(alpha/2, N n)/N, chi2(1 - alpha/2, N n)/N]`` at each
 step with probability 1 - alpha (:func:`kfcal_helpers.consistency.chi2_bounds`).
 
 :meth:`MonteCarloResult.checks` turns these into verdicts, as the calibration Monte Carlo
@@ -19,23 +27,24 @@ probability at most ``alpha``.
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from multiprocessing import get_context
 
 import numpy as np
-
 from scipy import stats
 
+from .. import montecarlo as core
 from ..consistency import Check, chi2_bounds, inside_fraction
-from ..progress import progress
-from ..validation import require_int, require_probability
-from .filters import FilterSetup, run
+from ..validation import require_instance, require_int, require_probability, require_seed
+from .batch import run_batch
+from .filters import FilterSetup
 from .model import N_MEAS, N_STATES, CoopParams
-from .simulation import simulate
+from .simulation import Simulation, simulate
 
-__all__ = ["MonteCarloResult", "truth_model_test", "default_workers"]
+__all__ = ["CHUNK_SIZE", "MonteCarloResult", "TruthModelExperiment", "truth_model_test", "truth_model_draws",
+           "estimate_truth_model_test"]
+
+#: runs drawn and filtered together (one generator each, :func:`kfcal_helpers.montecarlo.chunk_generators`)
+CHUNK_SIZE = 100
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,6 +59,7 @@ class MonteCarloResult:
     errors : (N, K, 6) truth - estimate, headings wrapped; sigma2 : (N, K, 6) 2 sqrt(diag P)
     nees_bounds, nis_bounds : (lower, upper) for the run averages
     measurements : the rows of y the filter used (the NIS has ``len(measurements)`` degrees of freedom)
+    seconds : float -- wall time of the test, s
     """
 
     filter: str
@@ -64,6 +74,7 @@ class MonteCarloResult:
     nees_bounds: tuple
     nis_bounds: tuple
     measurements: tuple = tuple(range(N_MEAS))
+    seconds: float = 0.0
 
     @property
     def nees_mean(self) -> np.ndarray:
@@ -115,8 +126,8 @@ class MonteCarloResult:
         has = np.isfinite(self.nis).all(axis=0)
         n_entries = self.errors[0].size + self.nees.shape[1] + int(has.sum())
         a_sim = self.alpha / n_entries
-        mean = self.errors.mean(axis=0).ravel()
-        sem = self.errors.std(axis=0, ddof=1).ravel() / np.sqrt(n)
+        mean, std = _mean_std(self.errors)
+        mean, sem = mean.ravel(), std.ravel() / np.sqrt(n)
         zero = np.zeros_like(mean)
         t_pt, t_sim = stats.t.ppf(1 - self.alpha / 2, n - 1), stats.t.ppf(1 - a_sim / 2, n - 1)
         out = {"mean_error": Check("mean_error", "run mean of the error, per step and state", mean, zero,
@@ -145,18 +156,121 @@ class MonteCarloResult:
         }
 
 
-def default_workers() -> int:
-    """Worker processes for Monte Carlo runs: the ``KFCAL_WORKERS`` variable, else min(2, CPUs)."""
-    env = os.environ.get("KFCAL_WORKERS")
-    if env:
-        return require_int("KFCAL_WORKERS", int(env), minimum=1)
-    return max(1, min(2, os.cpu_count() or 1))
+_BLOCK = 256  #: runs per block of the ensemble standard deviation in checks()
 
 
-def _one_run(task):
-    y, truth, setup = task
-    r = run(y, setup, truth)
-    return r.nees, r.nis, r.errors(truth), r.sigma2
+def _mean_std(errors):
+    """Mean and ensemble standard deviation (ddof 1) over the runs of ``errors`` (N, K, 6), in blocks of
+    runs: the two-pass formula of ``numpy.std`` without an (N, K, 6) temporary."""
+    mean = errors.mean(axis=0)
+    ss = np.zeros_like(mean)
+    for i in range(0, errors.shape[0], _BLOCK):
+        d = errors[i:i + _BLOCK] - mean
+        ss += np.einsum("nkj,nkj->kj", d, d)
+    return mean, np.sqrt(ss / (errors.shape[0] - 1))
+
+
+# Memory of a test, bytes (measured with tracemalloc and the peak RSS of a child process,
+# tests/test_coop_memory.py): the interpreter with numpy, scipy, filterpy and this package; the
+# float64 values kept per run and step (NEES, NIS, 6 errors, 6 two-sigma bounds); those of one chunk
+# in flight per run and step (its truths, measurements, the draws' temporaries and its partial
+# result); at the end, the memory of the last chunks, which the allocator may keep, and the blocks
+# of ``checks()``.
+_BASE_BYTES = 150e6
+_KEPT_PER_STEP = 14 * 8
+_CHUNK_PER_STEP = 48 * 8
+#: one-thread seconds per run of 1001 steps (2-core machine, 2026), and per chunk (the step loop)
+_SECONDS_PER_RUN = {"lkf": 1.5e-3, "ekf": 4.0e-3, "ukf": 1.0e-2}
+_SECONDS_PER_CHUNK = {"lkf": 0.05, "ekf": 0.15, "ukf": 0.25}
+
+
+class TruthModelExperiment:
+    """The truth-model test as an :class:`kfcal_helpers.montecarlo.Experiment` of the shared core.
+
+    A chunk of ``size`` runs draws its truths and measurements with
+    ``simulate(params, size, rng, every=every)`` from the chunk's generator and filters them with
+    :func:`~kfcal_helpers.coop.batch.run_batch`; the per-run NEES (N, K), NIS (N, K), errors (N, K, 6)
+    and two-sigma bounds (N, K, 6) are written into the arrays of the total (allocated once for the
+    ``n_runs`` runs), in chunk order.
+
+    setup : FilterSetup -- the filter and its settings (its ``params`` are the truth model's)
+    n_runs : int >= 1 -- the runs the total holds (pass the same to :func:`kfcal_helpers.montecarlo.run`)
+    every : int >= 1 -- keep the measurements of every ``every``-th step only; alpha : of the result
+    """
+
+    def __init__(self, setup: FilterSetup, n_runs: int, every: int = 1, alpha: float = 0.05):
+        self.setup = require_instance("setup", setup, FilterSetup)
+        self.n_runs = require_int("n_runs", n_runs, minimum=1)
+        self.every = require_int("every", every, minimum=1)
+        self.alpha = require_probability("alpha", alpha)
+        self.params = setup.params
+
+    def chunk_size(self) -> int:
+        return CHUNK_SIZE
+
+    def fixed_bytes(self, n_runs: int) -> float:
+        return _BASE_BYTES + _KEPT_PER_STEP * self.params.n_samples * n_runs
+
+    def chunk_bytes(self, size: int) -> float:
+        return _CHUNK_PER_STEP * self.params.n_samples * size
+
+    def final_bytes(self, n_runs: int) -> float:
+        return 2 * self.chunk_bytes(min(n_runs, CHUNK_SIZE)) + 2 * 6 * 8 * self.params.n_samples * min(n_runs, _BLOCK)
+
+    def seconds(self, n_runs: int) -> float:
+        f = self.setup.filter
+        steps = self.params.n_samples / 1001
+        return steps * (_SECONDS_PER_RUN[f] * n_runs + _SECONDS_PER_CHUNK[f] * -(-n_runs // CHUNK_SIZE))
+
+    def draw(self, size: int, rng: np.random.Generator) -> Simulation:
+        """The truths and measurements of a chunk of ``size`` runs drawn from ``rng``."""
+        return simulate(self.params, size, rng, every=self.every)
+
+    def run_chunk(self, size, rng, chunk):
+        sim = self.draw(size, rng)
+        chunk.check()
+        b = run_batch(sim.y, self.setup, sim.truth)
+        return b.nees, b.nis, b.errors, b.sigma2
+
+    def empty(self):
+        n, K = self.n_runs, self.params.n_samples
+        return {"n": 0, "nees": np.empty((n, K)), "nis": np.empty((n, K)), "errors": np.empty((n, K, N_STATES)),
+                "sigma2": np.empty((n, K, N_STATES))}
+
+    def add(self, total, partial):
+        i, size = total["n"], partial[0].shape[0]
+        if i + size > self.n_runs:
+            raise ValueError(f"n_runs: the experiment was made for {self.n_runs} runs, more ran")
+        for name, values in zip(("nees", "nis", "errors", "sigma2"), partial):
+            total[name][i:i + size] = values
+        total["n"] = i + size
+        return total
+
+    def result(self, total, n_runs, seconds) -> MonteCarloResult:
+        if total["n"] != n_runs or n_runs != self.n_runs:
+            raise ValueError(f"n_runs: the experiment was made for {self.n_runs} runs, {total['n']} ran, "
+                             f"{n_runs} asked")
+        s = self.setup
+        return MonteCarloResult(s.filter, n_runs, self.alpha, self.every, self.params.t, total["nees"],
+                                total["nis"], total["errors"], total["sigma2"],
+                                chi2_bounds(N_STATES, n_runs, self.alpha),
+                                chi2_bounds(s.measurement.dim, n_runs, self.alpha), s.measurement.rows, seconds)
+
+
+def _experiment(params, n_runs, filter, alpha, every, settings) -> TruthModelExperiment:
+    return TruthModelExperiment(FilterSetup.build(filter, params, **settings), n_runs, every, alpha)
+
+
+def estimate_truth_model_test(params: CoopParams | None = None, n_runs: int = 50, *, filter: str = "ekf",
+                              every: int = 1, workers: int | None = None, runs_name: str = "n_runs",
+                              extra_bytes: float = 0.0, **settings) -> core.Estimate:
+    """The memory and time estimate of :func:`truth_model_test` with these arguments, before it runs
+    (:func:`kfcal_helpers.montecarlo.estimate`): ValueError naming ``runs_name`` when the test would
+    need more than 500 MB or more than an hour."""
+    n_runs = require_int(runs_name, n_runs, minimum=1)
+    exp = _experiment(params, n_runs, filter, 0.05, every, settings)
+    return core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,
+                         what=f"{exp.params.n_samples} steps of the {exp.setup.filter.upper()}")
 
 
 def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0, *, filter: str = "ekf",
@@ -168,35 +282,60 @@ def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0,
     ----------
     params : CoopParams -- model, noise, duration (default: the course's, 100 s)
     n_runs : int >= 1 -- N
-    seed : int or numpy Generator -- all truths and measurements are drawn from it by
-        :func:`~kfcal_helpers.coop.simulation.simulate` (``simulate(params, n_runs, seed, every=every)``
-        gives the same draws, to re-run and plot one run)
+    seed : int in [0, 2**63 - 1] (or a numpy Generator, or None for fresh entropy) -- the seed of the
+        core's policy (:func:`kfcal_helpers.montecarlo.chunk_generators`): chunk c of
+        :data:`CHUNK_SIZE` runs draws from its own generator.  ``truth_model_draws(params, n_runs,
+        seed, every=every)`` redraws the same truths and measurements, to re-run and plot one run
     filter : "lkf", "ekf" or "ukf"
     alpha : float in (0, 1) -- significance of the two-sided chi-square tests
     every : int >= 1 -- keep the measurements of every ``every``-th step only (NaN elsewhere)
-    workers : int >= 1 -- processes (default :func:`default_workers`); results do not depend on it
+    workers : int >= 1 -- threads (default :func:`kfcal_helpers.montecarlo.default_workers`, which reads
+        ``KFCAL_WORKERS``); the result does not depend on it
+    desc : the progress bar's label
     settings : the filter's settings, keywords of :meth:`~kfcal_helpers.coop.filters.FilterSetup.build`:
         Q, R, x0, P0, measurements, points (UKF), wrap_innovations (EKF), subtract_nominal (LKF)
 
     Returns
     -------
-    MonteCarloResult
+    MonteCarloResult (with ``seconds``, the wall time).  ValueError, before any work, when the test
+    would need more than 500 MB (the per-run arrays: 112 kB per run of 1001 steps) or an hour.
     """
     n_runs = require_int("n_runs", n_runs, minimum=1)
     alpha = require_probability("alpha", alpha)
-    workers = default_workers() if workers is None else require_int("workers", workers, minimum=1)
-    setup = FilterSetup.build(filter, params, **settings)
-    p = setup.params
-    sim = simulate(p, n_runs, seed, every=every)
-    nees_bounds = chi2_bounds(N_STATES, n_runs, alpha)
-    nis_bounds = chi2_bounds(setup.measurement.dim, n_runs, alpha)
-    tasks = [(sim.y[i], sim.truth[i], setup) for i in range(n_runs)]
-    desc = desc or f"{setup.filter.upper()} truth-model test"
-    if workers > 1 and n_runs > 1:
-        with ProcessPoolExecutor(max_workers=min(workers, n_runs), mp_context=get_context("fork")) as pool:
-            out = list(progress(pool.map(_one_run, tasks), total=n_runs, desc=desc))
-    else:
-        out = [_one_run(task) for task in progress(tasks, total=n_runs, desc=desc)]
-    nees, nis, err, sig = (np.stack(a) for a in zip(*out))
-    return MonteCarloResult(setup.filter, n_runs, alpha, sim.every, p.t, nees, nis, err, sig, nees_bounds,
-                            nis_bounds, setup.measurement.rows)
+    exp = _experiment(params, n_runs, filter, alpha, every, settings)
+    desc = desc or f"{exp.setup.filter.upper()} truth-model test"
+    return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=desc,
+                    what=f"{exp.params.n_samples} steps of the {exp.setup.filter.upper()}")
+
+
+def truth_model_draws(params: CoopParams | None = None, n_runs: int = 50, seed=0, *, every: int = 1,
+                      run: int | None = None) -> Simulation:
+    """The truths and measurements :func:`truth_model_test` ``(params, n_runs, seed, every=every)``
+    filters, drawn again from the same chunk generators.
+
+    params, n_runs, seed, every : as in :func:`truth_model_test` (an int seed redraws exactly; a
+        Generator is advanced by its ``spawn``, so pass the same seed, not the same Generator)
+    run : None for all runs (``truth`` (n_runs, K, 6), ``y`` (n_runs, K, 5)), or the index of one run
+        in 0..n_runs-1 (``truth`` (K, 6), ``y`` (K, 5); only its chunk is drawn)
+
+    Returns
+    -------
+    Simulation (``seed`` is the int seed, None for a Generator)
+    """
+    p = require_instance("params", params, CoopParams, allow_none=True) or CoopParams()
+    n_runs = require_int("n_runs", n_runs, minimum=1)
+    every = require_int("every", every, minimum=1)
+    if run is not None:
+        run = require_int("run", run, minimum=0)
+        if run >= n_runs:
+            raise ValueError(f"run must be an integer in 0..{n_runs - 1}, got {run}")
+    seed_value = None if isinstance(seed, np.random.Generator) else require_seed("seed", seed)
+    chunks = core.chunk_generators(CHUNK_SIZE, n_runs, seed)
+    if run is not None:
+        size, rng = chunks[run // CHUNK_SIZE]
+        sim = simulate(p, size, rng, every=every)
+        i = run % CHUNK_SIZE
+        return Simulation(p, seed_value, every, sim.truth[i].copy(), sim.y[i].copy())
+    sims = [simulate(p, size, rng, every=every) for size, rng in chunks]
+    return Simulation(p, seed_value, every, np.concatenate([s.truth for s in sims]),
+                      np.concatenate([s.y for s in sims]))

@@ -8,28 +8,40 @@ repr is one line, so a notebook check cell shows exactly that line::
 
 An answer that is still the placeholder (``None`` or ``...``) gives "not answered yet"
 rather than an error, so the student notebooks run top to bottom unchanged.
+
+The one answer-format rule of every exercise (:data:`FORMAT_RULE`): pass the value you computed
+(a variable or an expression), with no rounding; the checks compare at full precision.  An answer
+that is that value rounded (to some number of decimals or significant figures, within float error)
+is told so (:data:`ROUNDED_HINT`); an answer near the right value that is *not* a rounding of it gets
+the hint of the mistake it matches, or the exercise's hint: a small physical error is a method error.
+
+Whatever the answer is (a complex number, an integer too large for a float, 1e308, NaN, a string,
+an object), a check answers with a one-line hint and lets no exception or warning through:
+:func:`judge`, :func:`as_array` and :func:`call_student` screen it (:func:`answer_problem`).
 """
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
 
-__all__ = ["Feedback", "Exercise", "unanswered", "as_array", "matches", "judge", "call_student", "first_line",
-           "chi2_average_bounds", "distinct_mistakes", "GENERIC_HINT", "PLACEHOLDER", "PLACEHOLDER_FUNC",
-           "ROUNDED_RTOL", "ROUNDED_HINT"]
+__all__ = ["Feedback", "Exercise", "unanswered", "as_array", "answer_problem", "matches", "is_rounding", "judge",
+           "call_student", "first_line", "chi2_average_bounds", "distinct_mistakes", "GENERIC_HINT", "PLACEHOLDER",
+           "PLACEHOLDER_FUNC", "FORMAT_RULE", "ROUNDED_HINT", "NON_FINITE_HINT"]
 
+#: the answer-format rule of every exercise, stated once (exercise texts and feedback repeat it)
+FORMAT_RULE = "pass the value you computed (a variable or an expression), with no rounding"
 GENERIC_HINT = "compare your answer with the formula in the notebook, term by term"
 PLACEHOLDER = "replace ... with your answer"
-#: an answer this close (relative) to the expected value, but not within the check's own tolerance, is
-#: taken for the right value rounded (digits copied from a printout) and gets :data:`ROUNDED_HINT`
-ROUNDED_RTOL = 1e-3
-ROUNDED_HINT = ("close, but not exactly: pass the value you computed (a variable or an expression), not digits "
-                "copied from a printout; if you did, look for a small difference of method")
+#: the message for an answer that is the expected value rounded (to some decimals or significant figures)
+ROUNDED_HINT = f"close, but these digits look rounded: {FORMAT_RULE}; the checks compare at full precision"
 PLACEHOLDER_FUNC = "write the body of your function (replace ... with your code), then pass the function to the check"
+#: the hint for an answer that holds a NaN or an infinity
+NON_FINITE_HINT = "your answer contains NaN or inf: look for a division by zero or an overflow"
 
 
 @dataclass(frozen=True)
@@ -102,14 +114,38 @@ def first_line(exc: BaseException, limit: int = 100) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def _screen_function_output(out, depth: int = 0) -> str | None:
+    """Why a student function's output ``out`` cannot be judged as real finite numbers (one line), or
+    None.  Looks into tuples and lists (two levels); leaves non-numeric outputs to the check."""
+    if isinstance(out, (tuple, list)) and depth < 2:
+        for item in out:
+            why = _screen_function_output(item, depth + 1)
+            if why is not None:
+                return why
+        return None
+    if isinstance(out, (str, bytes)) or unanswered(out) or callable(out):
+        return None
+    arr, why = _to_float(out)
+    if why is None:
+        if np.all(np.isfinite(arr)):
+            return None
+        return "your function returned NaN or inf on the test input: look for a division by zero or an overflow"
+    if why.startswith("your answer is complex"):
+        return "your function returned a complex number on the test input: the result is real"
+    if "overflow" in why:
+        return "your function returned a number too large for a float (overflow) on the test input"
+    return None  # not numbers at all: the check says what it expected
+
+
 def call_student(exercise: str, func, cases, what: str = "your function", convert=None):
     """Call the student's ``func`` once per argument tuple in ``cases``, safely.
 
     Returns ``(outputs, None)`` with one output per case, or ``(None, Feedback)`` when the function
     is still the placeholder, is not callable, raises (the exception's name and first line become the
-    hint), or returns the placeholder (None or ...).  ``convert`` (optional) maps each argument before
-    the call (e.g. ``np.asarray``).  Floating-point warnings inside the student's code are silenced:
-    a NaN result is judged by the check, never shown as a warning.
+    hint), returns the placeholder (None or ...), or returns numbers that cannot be judged (complex,
+    too large for a float, NaN or inf; :func:`answer_problem`).  ``convert`` (optional) maps each
+    argument before the call (e.g. ``np.asarray``).  Warnings inside the student's code are silenced:
+    a bad result is judged by the check, never shown as a warning.
     """
     if unanswered(func):
         return None, Feedback(exercise, False, PLACEHOLDER_FUNC, answered=False)
@@ -124,12 +160,15 @@ def call_student(exercise: str, func, cases, what: str = "your function", conver
             with warnings.catch_warnings(), np.errstate(all="ignore"):
                 warnings.simplefilter("ignore")
                 out = func(*args)
+                why = _screen_function_output(out)
         except Exception as exc:  # a half-written function: name the exception, never crash
             return None, Feedback(exercise, False, f"your function raised {type(exc).__name__} on the test input: "
                                                    f"{first_line(exc)}")
         if unanswered(out):
             return None, Feedback(exercise, False, f"your function returns {out!r}: {PLACEHOLDER_FUNC}",
                                   answered=False)
+        if why is not None:
+            return None, Feedback(exercise, False, why)
         outs.append(out)
     return outs, None
 
@@ -151,23 +190,125 @@ def unanswered(answer) -> bool:
     return answer is None or answer is Ellipsis
 
 
+def _to_float(answer):
+    """``(float ndarray, None)`` or ``(None, reason)``; never raises, never warns."""
+    if isinstance(answer, (str, bytes)):
+        return None, f"expected numbers, got {type(answer).__name__}"
+    if callable(answer) and not isinstance(answer, np.ndarray):
+        return None, "expected numbers, got a function: pass the value it computes"
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        try:
+            raw = np.asarray(answer)
+        except Exception:  # ragged nesting and other unconvertible objects
+            return None, f"expected numbers, got {type(answer).__name__}"
+        if np.iscomplexobj(raw) or (raw.dtype == object and any(isinstance(v, complex) for v in raw.flat)):
+            return None, ("your answer is complex: the answer is real; keep the real part only where the imaginary "
+                          "part is zero by construction")
+        if raw.dtype == object and any(v is None or v is Ellipsis for v in raw.flat):
+            return None, "your answer still holds None or ...: replace every placeholder with a number"
+        if raw.dtype.kind in "USVMm" or (raw.dtype == object and any(isinstance(v, (str, bytes)) for v in raw.flat)):
+            return None, f"expected numbers, got {type(answer).__name__}"
+        try:
+            arr = raw.astype(float)
+        except OverflowError:
+            return None, "your answer holds a number too large for a float (overflow): " + FORMAT_RULE
+        except (TypeError, ValueError):
+            return None, f"expected numbers, got {type(answer).__name__}"
+        except Exception:
+            return None, f"expected numbers, got {type(answer).__name__}"
+    return arr, None
+
+
+def answer_problem(answer) -> str | None:
+    """Why ``answer`` cannot be judged as real finite numbers, as one line, or None when it can.
+
+    Catches strings, functions, objects, ragged lists, complex numbers (never silently dropping the
+    imaginary part), integers too large for a float (``10**400``) and NaN or inf; finite huge values
+    such as 1e308 are numbers (judged wrong by comparison, without a warning)."""
+    arr, why = _to_float(answer)
+    if why is not None:
+        return why
+    if not np.all(np.isfinite(arr)):
+        return NON_FINITE_HINT
+    return None
+
+
 def as_array(answer):
-    """``answer`` as a float ndarray, or None when it cannot be one (a string, ragged lists...)."""
-    try:
-        arr = np.asarray(answer, dtype=float)
-    except (TypeError, ValueError):
-        return None
-    return arr
+    """``answer`` as a float ndarray, or None when it cannot be one (a string, a function, ragged lists,
+    a complex number, an integer too large for a float...).  NaN and inf stay (the check judges them).
+    Never raises, never warns."""
+    return _to_float(answer)[0]
 
 
 def matches(answer, expected, rtol: float = 1e-6, atol: float = 1e-12) -> bool:
     """True when ``answer`` has the shape of ``expected`` (after squeezing) and equals it
-    within ``rtol``/``atol``; never raises for a malformed answer."""
+    within ``rtol``/``atol`` entry by entry; never raises or warns for a malformed answer."""
     a, e = as_array(answer), np.asarray(expected, dtype=float)
     if a is None or a.size != e.size:
         return False
     a = a.reshape(e.shape)
-    return bool(np.all(np.isfinite(a)) and np.allclose(a, e, rtol=rtol, atol=atol))
+    with np.errstate(all="ignore"):
+        return bool(np.all(np.isfinite(a)) and np.allclose(a, e, rtol=rtol, atol=atol))
+
+
+def _entry_is_rounding(a: float, v: float, q: float) -> bool:
+    """True when ``a`` is ``v`` rounded (or cut) to a multiple of the quantum ``q`` (a power of ten),
+    within float error."""
+    d = v - a
+    slack = q * 1e-6
+    if not abs(d) < q + slack:
+        return False  # farther than one quantum (or not finite)
+    k = a / q
+    if abs(k - round(k)) > 1e-6 + 1e-12 * abs(k):
+        return False  # a holds digits below q
+    if abs(d) <= 0.5 * q + slack:
+        return True  # rounded to nearest (either way at a tie)
+    return abs(d) < q - slack and abs(a) <= abs(v) and (a == 0 or math.copysign(1, a) == math.copysign(1, v))  # cut
+
+
+def is_rounding(answer, value, min_figures: int = 2) -> bool:
+    """True when ``answer`` is ``value`` rounded, as a printout or a hand copy rounds it: every entry
+    rounded (or cut) to a common number of decimals, or each entry to its own number of significant
+    figures; at least ``min_figures`` significant figures of the largest entry (of each entry, for
+    significant figures) are kept.  An entry equal to the value's (to 1e-12) fits any rounding.
+    False when the shapes differ or anything is not finite.  Never raises or warns."""
+    a, v = as_array(answer), np.asarray(value, dtype=float).ravel()
+    if a is None or a.size != v.size or v.size == 0:
+        return False
+    a = a.ravel()
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(v))):
+        return False
+    with np.errstate(all="ignore"):
+        exact = np.abs(a - v) <= 1e-12 * np.maximum(np.abs(v), np.abs(a))
+        if np.all(exact):
+            return False  # not rounded: equal
+        top = float(np.max(np.abs(v)))
+        if top == 0.0 or top > 1e300:
+            return False
+        e_top = math.floor(math.log10(top))
+        own = np.zeros(v.size, bool)  # each entry rounded to >= min_figures significant figures of its own
+        for i, (ai, vi) in enumerate(zip(a, v)):
+            if exact[i] or vi == 0.0:
+                own[i] = exact[i]
+                continue
+            e = math.floor(math.log10(abs(vi)))
+            own[i] = any(_entry_is_rounding(ai, vi, 10.0 ** (e - s + 1)) for s in range(min_figures, 16))
+        if np.all(own):
+            return True
+        for k in range(e_top - min_figures + 1, e_top - 15, -1):  # a common number of decimals
+            q = 10.0 ** k
+            if all(exact[i] or own[i] or _entry_is_rounding(ai, vi, q) for i, (ai, vi) in enumerate(zip(a, v))):
+                return True
+    return False
+
+
+def _distance(a: np.ndarray, v: np.ndarray) -> float:
+    """Largest relative difference entry by entry (each entry in its own scale)."""
+    with np.errstate(all="ignore"):
+        scale = np.maximum(np.abs(a), np.abs(v))
+        d = np.where(scale > 0, np.abs(a - v) / np.where(scale > 0, scale, 1.0), 0.0)
+    return float(np.max(d))
 
 
 def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol: float = 1e-12,
@@ -177,47 +318,36 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
     wrong : sequence of ``(value, hint)`` pairs: the value a common mistake gives and the
         hint that points at that mistake (never the answer itself)
     hint : the hint when the answer is neither right nor a known mistake
-    A shape different from the expected one gets its own hint.  An answer within
-    :data:`ROUNDED_RTOL` (relative to the largest entry) of the expected value or of a known mistake's
-    value gets the message of the nearest of them: :data:`ROUNDED_HINT` (a rounded copy of the right
-    value) or that mistake's hint (a rounded copy of a wrong one).
+    Closeness is entry by entry (``rtol`` relative to each entry, plus ``atol``).  An answer that
+    cannot be judged as real finite numbers (:func:`answer_problem`) or has another shape gets its own
+    hint.  An answer that is a rounding of the expected value (:func:`is_rounding`) gets
+    :data:`ROUNDED_HINT`, also when it is a rounding of a mistake's value too (at that precision
+    nobody can tell them apart); a rounding of a mistake's value only gets that mistake's hint.
     """
     if unanswered(answer):
         return Feedback(exercise, False, placeholder, answered=False)
-    if matches(answer, expected, rtol, atol):
+    e = np.asarray(expected, dtype=float)
+    a, why = _to_float(answer)
+    if why is not None:
+        if why.startswith("expected numbers"):
+            why = f"expected numbers (an array of shape {e.shape}), got {type(answer).__name__}"
+        return Feedback(exercise, False, why)
+    if not np.all(np.isfinite(a)):
+        return Feedback(exercise, False, NON_FINITE_HINT)
+    if matches(a, e, rtol, atol):
         return Feedback(exercise, True, praise)
-    for value, why in wrong:
-        if matches(answer, value, rtol, atol):
+    rounded_right = is_rounding(a, e)
+    for value, why in wrong:  # a mistake may have another shape (one entry missing...)
+        if matches(a, value, rtol, atol) and not (rounded_right and not matches(a, value, 1e-12, 0.0)):
             return Feedback(exercise, False, why)
-    if rtol < ROUNDED_RTOL:
-        near = _nearest(answer, [(expected, ROUNDED_HINT), *wrong])
-        if near is not None:
-            return Feedback(exercise, False, near)
-    a, e = as_array(answer), np.asarray(expected, dtype=float)
-    if a is None:
-        return Feedback(exercise, False, f"expected numbers (an array of shape {e.shape}), got {type(answer).__name__}")
     if a.size != e.size:
         return Feedback(exercise, False, f"expected shape {e.shape}, got {a.shape}")
+    if rounded_right:
+        return Feedback(exercise, False, ROUNDED_HINT)
+    near = [(_distance(a.ravel(), np.asarray(v, dtype=float).ravel()), why) for v, why in wrong if is_rounding(a, v)]
+    if near:
+        return Feedback(exercise, False, min(near, key=lambda t: t[0])[1])
     return Feedback(exercise, False, hint)
-
-
-def _nearest(answer, candidates):
-    """The message of the candidate ``(value, message)`` nearest to ``answer`` when it is within
-    :data:`ROUNDED_RTOL` of it, relative to the candidate's largest entry (so a matrix rounded to a few
-    decimals counts as close too); None when no candidate is that close or the shapes differ."""
-    a = as_array(answer)
-    best, best_d = None, ROUNDED_RTOL
-    for value, message in candidates:
-        v = np.asarray(value, dtype=float)
-        if a is None or a.size != v.size or not np.all(np.isfinite(a)):
-            continue
-        scale = np.max(np.abs(v))
-        if scale == 0:
-            continue
-        d = float(np.max(np.abs(a.reshape(v.shape) - v)) / scale)
-        if d <= best_d:
-            best, best_d = message, d
-    return best
 
 
 def chi2_average_bounds(dim: int, n: int, alpha: float, *, dof: int | None = None, divide_by: float | None = None,
