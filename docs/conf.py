@@ -11,7 +11,7 @@ itself (``_static/mathjax``, from the ``sphinx-mathjax-offline`` package), so ne
 a reader's browser fetches anything from the internet.
 
 Sphinx reads documents only below ``docs/``, so each build first copies the lesson notebooks
-``notebooks/[0-9][0-9]_*.ipynb`` into ``docs/lessons/`` (ignored by git), changing two things in
+``notebooks/[0-9][0-9]*_*.ipynb`` into ``docs/lessons/`` (ignored by git), changing two things in
 the copy: a link to a worked solution becomes the solution's path in the repository, a ``$$`` display
 that continues a paragraph gets a blank line before it (as MyST needs), and the live demo's widget
 (which needs a running kernel) becomes the image and status line it stored.
@@ -129,7 +129,7 @@ def sync_lessons() -> list[str]:
     """Write every lesson notebook, as the site shows it, to ``docs/lessons/``; remove stale ones.
     A file whose text is unchanged is not rewritten, so Sphinx rebuilds only changed pages."""
     LESSONS.mkdir(exist_ok=True)
-    names = sorted(p.name for p in NOTEBOOKS.glob("[0-9][0-9]_*.ipynb"))
+    names = sorted(p.name for p in NOTEBOOKS.glob("[0-9][0-9]*_*.ipynb"))
     for name in names:
         nb = json.loads((NOTEBOOKS / name).read_text(encoding="utf-8"))
         text = json.dumps(lesson_for_site(nb), indent=1, ensure_ascii=False) + "\n"

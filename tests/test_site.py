@@ -31,7 +31,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-LESSONS = sorted(p.stem for p in (ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
+LESSONS = sorted(p.stem for p in (ROOT / "notebooks").glob("[0-9][0-9]*_*.ipynb"))
 LOCAL_SCHEMES = {"file", "data", "blob", "about"}
 NETWORK_SCHEMES = {"http", "https", "ws", "wss", "ftp"}
 WINDOW = (1280, 900)
