@@ -985,14 +985,12 @@ def test_course_log_reader_one_line_exit_2(build, extra, words, tmp_path, capsys
     monkeypatch.setattr(coop_cli, "run_filter", no_filter)
     monkeypatch.setattr(coop_cli, "truth_model_test", no_filter)
     argv = ["coop", *(["--log", str(build(tmp_path))] if build is not None else []), *extra]
-    t0 = time.perf_counter()
     code, out, err = _run(argv, capsys)
     assert code == 2 and out == "", err
     _one_error_line(err, "coop")
     for word in words:
         assert word in err, (word, err)
     assert "realizations" not in err
-    assert time.perf_counter() - t0 < 60  # refused before reading (a regression hangs or reads for minutes)
 
 
 @pytest.mark.parametrize("times", [lf.EPOCH + 0.1 * np.arange(21), 1e3 * lf.EPOCH + 100.1 * np.arange(21)],
