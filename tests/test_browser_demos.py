@@ -34,6 +34,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from chromium import CHROMEDRIVER, CHROMIUM, start
 
 from kfcal_helpers.calibration.demos import calibration_controls
 from kfcal_helpers.coop.demos import coop_controls
@@ -46,18 +47,6 @@ WINDOW = (1280, 800)
 KEY_PRESSES = 4  # slider steps timed per notebook
 
 
-def _binary(env: str, *names: str) -> str | None:
-    if os.environ.get(env):
-        return os.environ[env] if os.access(os.environ[env], os.X_OK) else None
-    for name in names:
-        found = shutil.which(name)
-        if found:
-            return found
-    return None
-
-
-CHROMIUM = _binary("KFCAL_CHROMIUM", "chromium", "chromium-browser")
-CHROMEDRIVER = _binary("KFCAL_CHROMEDRIVER", "chromedriver")
 
 pytestmark = pytest.mark.skipif(
     CHROMIUM is None or CHROMEDRIVER is None,
@@ -121,17 +110,7 @@ def lab(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def browser(tmp_path_factory):
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for arg in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                "--disable-dev-shm-usage", f"--window-size={WINDOW[0]},{WINDOW[1]}",
-                f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}"):
-        options.add_argument(arg)
-    driver = webdriver.Chrome(service=Service(executable_path=CHROMEDRIVER), options=options)
+    driver = start(WINDOW, tmp_path_factory.mktemp('chromium-profile'))
     try:
         driver.set_window_size(*WINDOW)
         yield driver

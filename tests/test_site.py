@@ -21,7 +21,6 @@ import html.parser
 import json
 import os
 import re
-import shutil
 import subprocess
 import sys
 import time
@@ -29,6 +28,7 @@ import urllib.parse
 from pathlib import Path
 
 import pytest
+from chromium import CHROMEDRIVER, CHROMIUM, start
 
 ROOT = Path(__file__).resolve().parents[1]
 LESSONS = sorted(p.stem for p in (ROOT / "notebooks").glob("[0-9][0-9]*_*.ipynb"))
@@ -37,18 +37,6 @@ NETWORK_SCHEMES = {"http", "https", "ws", "wss", "ftp"}
 WINDOW = (1280, 900)
 
 
-def _binary(env: str, *names: str) -> str | None:
-    if os.environ.get(env):
-        return os.environ[env] if os.access(os.environ[env], os.X_OK) else None
-    for name in names:
-        found = shutil.which(name)
-        if found:
-            return found
-    return None
-
-
-CHROMIUM = _binary("KFCAL_CHROMIUM", "chromium", "chromium-browser")
-CHROMEDRIVER = _binary("KFCAL_CHROMEDRIVER", "chromedriver")
 
 pytest.importorskip("sphinx", reason="site test skipped: Sphinx is not installed (pip install -r environment.txt)")
 pytest.importorskip("myst_nb", reason="site test skipped: myst-nb is not installed (pip install -r environment.txt)")
@@ -75,19 +63,8 @@ def site(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def browser(tmp_path_factory):
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for arg in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                "--disable-dev-shm-usage", f"--window-size={WINDOW[0]},{WINDOW[1]}",
-                f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}"):
-        options.add_argument(arg)
     # console messages, and the network events (every URL the page requests)
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL", "performance": "ALL"})
-    driver = webdriver.Chrome(service=Service(executable_path=CHROMEDRIVER), options=options)
+    driver = start(WINDOW, tmp_path_factory.mktemp('chromium-profile'), {"browser": "ALL", "performance": "ALL"})
     try:
         driver.set_window_size(*WINDOW)
         driver.set_script_timeout(60)
