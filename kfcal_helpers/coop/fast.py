@@ -1,0 +1,373 @@
+"""One EKF or UKF run without filterpy's object overhead: the lean path of the live demo (notebook 18).
+
+The filters of :mod:`~kfcal_helpers.coop.filters` are filterpy's classes and stay the reference; the
+demo runs one filter over the 1001-sample log on every redraw, and the per-step overhead of the
+classes (attribute copies, argument checks, generic callbacks, ``numpy.linalg`` on 6x6 matrices)
+costs most of its time.  Here the same equations run in a plain loop:
+
+* everything that does not change over a run is computed once: ``Omega Q Omega^T``, R of the rows
+  used, the chord ``v dt sinc(w dt / 2)`` and half-turn ``w dt / 2`` of each vehicle's arc (the control
+  is constant), the sigma-point weights, where the bearings sit among the rows used;
+* the EKF's mean, its Jacobian ``F = I + dt A(x+)`` (four entries) and ``h``, ``H = C(x-)`` of the rows
+  used are written out for the one state, with Python floats;
+* the gain comes from one LAPACK solve with S (``scipy.linalg.lapack.dgesv``) instead of
+  ``inv(S)``, and the UKF's Cholesky factor from ``dpotrf`` (the jitter fallback of
+  :func:`~kfcal_helpers.coop.filters.robust_sqrt` if it fails);
+* only what the demo shows is kept per step (``x+``, ``P+``, the innovation and S); the NIS, NEES,
+  errors and two-sigma bounds are computed afterwards for all steps at once.
+
+The results equal filterpy's (:func:`~kfcal_helpers.coop.filters.run_filter`) to rounding:
+``tests/test_coop_fast.py`` checks x, P, NIS, NEES, errors and two-sigma bounds to 1e-9 for both
+filters, several Q scales and measurement subsets.  Same conventions as there: start at (x0, P0) at
+t_0, update with a finite ``y_0``, and for k = 1..K-1 predict to t_k and update with ``y_k`` unless
+that row is NaN.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.kalman import MerweScaledSigmaPoints
+from scipy.linalg import lapack
+
+from ..consistency import nees as _nees
+from ..consistency import nis as _nis
+from ..validation import require_choice, require_instance, require_shape
+from .filters import FilterSetup, robust_sqrt
+from .model import MEAS_ANGLES, N_MEAS, N_STATES, STATE
+
+__all__ = ["FAST_FILTERS", "FastResult", "run_ekf_fast", "run_ukf_fast", "run_fast", "run_filter_fast"]
+
+#: the filters of the lean path
+FAST_FILTERS = ("ekf", "ukf")
+
+_PI = math.pi
+_TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True, eq=False)
+class FastResult:
+    """One lean filter run over K samples (filterpy's names where they apply).
+
+    filter : "ekf" or "ukf"; t : (K,) s; measurements : the rows of y used
+    x_post, P_post : (K, 6), (K, 6, 6) the estimate after each update (the prior without a
+        measurement), headings wrapped; ``x`` and ``P`` are the same arrays
+    y : (K, 5) wrapped innovations, NaN at steps without a measurement and in the rows not used
+    S : (K, 5, 5) innovation covariances, NaN likewise
+    nis : (K,) NIS (``len(measurements)`` degrees of freedom), NaN without a measurement
+    nees : (K,) NEES (6 degrees of freedom, headings wrapped), or None without truth
+    """
+
+    filter: str
+    t: np.ndarray
+    x_post: np.ndarray
+    P_post: np.ndarray
+    y: np.ndarray
+    S: np.ndarray
+    nis: np.ndarray
+    nees: np.ndarray | None
+    measurements: tuple
+
+    @property
+    def x(self) -> np.ndarray:
+        """The estimate at every step, (K, 6): ``x_post``."""
+        return self.x_post
+
+    @property
+    def P(self) -> np.ndarray:
+        """Its covariance, (K, 6, 6): ``P_post``."""
+        return self.P_post
+
+    @property
+    def sigma2(self) -> np.ndarray:
+        """Two-sigma bounds ``2 sqrt(diag P)``, shape (K, 6)."""
+        return 2.0 * np.sqrt(np.diagonal(self.P, axis1=-2, axis2=-1))
+
+    def errors(self, truth) -> np.ndarray:
+        """Estimation errors ``truth - x`` with the headings wrapped, shape (K, 6)."""
+        return STATE.residual(truth, self.x)
+
+
+def _check_y(y) -> np.ndarray:
+    """The measurements ``y`` (K, 5): rows all finite or all NaN (NaN: predict only)."""
+    y = require_shape("y", y, (None, N_MEAS))
+    if y.shape[0] < 1:
+        raise ValueError("y must hold at least one row")
+    nan = np.isnan(y)
+    if (nan.any(axis=1) & ~nan.all(axis=1)).any() or np.isinf(y).any():
+        raise ValueError("y rows must be all finite or all NaN (a NaN row means predict only)")
+    return y
+
+
+def _arc_constants(p):
+    """Chord ``d = v dt sinc(w dt / 2)`` and half-turn ``w dt / 2`` of each vehicle's arc (UGV, UAV),
+    as :func:`~kfcal_helpers.coop.model.arc` computes them for the constant control."""
+    vg, phi, va, wa = (float(v) for v in p.u0)
+    wg = vg * np.tan(phi) / p.L
+    out = []
+    for v, w in ((vg, wg), (va, wa)):
+        half = 0.5 * w * p.dt
+        out.append((float(v * p.dt * np.sinc(half / np.pi)), float(half)))
+    return out
+
+
+def _wrap(a: float) -> float:
+    return _PI - (_PI - a) % _TWO_PI
+
+
+def _solve(S, B, name):
+    """``S^-1 B`` for the innovation covariance S (m, m) and B (m, n): one LAPACK solve."""
+    _, _, X, info = lapack.dgesv(S, B)
+    if info != 0:
+        raise ValueError(f"y: the {name} diverged (the innovation covariance S became singular)")
+    return X
+
+
+def _finish(name, s, x, P, Y, S, has, truth) -> FastResult:
+    K = x.shape[0]
+    if not (np.isfinite(x).all() and np.isfinite(P).all()):
+        raise ValueError(f"y: the {name.upper()} diverged (non-finite estimate)")
+    rows = list(s.measurement.rows)
+    nis = np.full(K, np.nan)
+    if has.any():
+        y_used, S_used = Y[has], S[has]
+        if len(rows) < N_MEAS:
+            y_used, S_used = y_used[:, rows], S_used[:, rows][:, :, rows]
+        nis[has] = _nis(y_used, S_used)
+    nees = None
+    if truth is not None:
+        truth = require_shape("truth", truth, (K, N_STATES))
+        nees = _nees(STATE.residual(truth, x), P)
+    return FastResult(name, s.params.dt * np.arange(K), x, P, Y, S, nis, nees, tuple(rows))
+
+
+def _store_block(rows):
+    """Index of the rows used in the (K, 5) and (K, 5, 5) stores: basic slices for all five."""
+    if len(rows) == N_MEAS:
+        return slice(None), (slice(None), slice(None))
+    return list(rows), np.ix_(list(rows), list(rows))
+
+
+def _setup(setup, filter) -> FilterSetup:
+    s = require_instance("setup", setup, FilterSetup)
+    if s.filter != filter:
+        raise ValueError(f"setup must be a setup of the {filter.upper()}, got filter={s.filter!r}")
+    return s
+
+
+# ---------------------------------------------------------------------------
+# EKF
+def run_ekf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
+    """The EKF of :func:`~kfcal_helpers.coop.filters.run_ekf` in a plain loop, on measurements ``y``
+    (K, 5), with the true states ``truth`` (K, 6) for the NEES if given.
+
+    Per step: ``F = I + dt A(x+)`` (four entries), ``x- = phi(x+)`` (the exact arc),
+    ``P- = F P F^T + Omega Q Omega^T``; ``h(x-)`` and ``H = C(x-)`` of the rows used, the wrapped
+    innovation (``setup.wrap_innovations=False``: unwrapped, the mistake), ``K = P H^T S^-1`` and
+    filterpy's Joseph update ``P = (I - K H) P (I - K H)^T + K R K^T``, headings wrapped.
+    """
+    s = _setup(setup, "ekf")
+    y = _check_y(y)
+    p, model = s.params, s.measurement
+    K = y.shape[0]
+    rows = model.rows
+    wrap = s.wrap_innovations
+    bearings = [j for j, i in enumerate(rows) if i in MEAS_ANGLES]
+    Qd, R, eye = p.process_noise(s.Q), np.array(model.R), np.eye(N_STATES)
+    (dg, hg), (da, ha) = _arc_constants(p)
+    dt, vg, va = float(p.dt), float(p.u0[0]), float(p.u0[2])
+    has = ~np.isnan(y[:, 0])
+    ys = y.tolist()
+    xs = np.empty((K, N_STATES))
+    Ps = np.empty((K, N_STATES, N_STATES))
+    Y = np.full((K, N_MEAS), np.nan)
+    Ss = np.full((K, N_MEAS, N_MEAS), np.nan)
+    yrows, Sblock = _store_block(rows)
+    F = np.eye(N_STATES)
+    x = [float(v) for v in s.x0]
+    P = np.array(s.P0, dtype=float)
+    for k in range(K):
+        if k > 0:
+            xg, eg, tg, xa, ea, ta = x
+            F[0, 2] = dt * (-vg * math.sin(tg))
+            F[1, 2] = dt * (vg * math.cos(tg))
+            F[3, 5] = dt * (-va * math.sin(ta))
+            F[4, 5] = dt * (va * math.cos(ta))
+            mg, ma = tg + hg, ta + ha
+            x = [xg + dg * math.cos(mg), eg + dg * math.sin(mg), _wrap(mg + hg),
+                 xa + da * math.cos(ma), ea + da * math.sin(ma), _wrap(ma + ha)]
+            P = F @ P @ F.T + Qd
+        if has[k]:
+            xg, eg, tg, xa, ea, ta = x
+            dxi, deta = xa - xg, ea - eg
+            r2 = dxi * dxi + deta * deta
+            if r2 == 0:
+                raise ValueError("x: the two vehicles are at the same position (range 0): bearings and their "
+                                 "Jacobian are undefined")
+            r = math.sqrt(r2)
+            b = math.atan2(deta, dxi)
+            a, c, e, f = deta / r2, -dxi / r2, -dxi / r, -deta / r
+            full_h = (_wrap(b - tg), r, _wrap(b + _PI - ta), xa, ea)
+            full_H = ((a, c, -1.0, -a, -c, 0.0), (e, f, 0.0, -e, -f, 0.0), (a, c, 0.0, -a, -c, -1.0),
+                      (0.0, 0.0, 0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0, 1.0, 0.0))
+            zk = ys[k]
+            nu = [zk[i] - full_h[i] for i in rows]
+            if wrap:
+                for j in bearings:
+                    nu[j] = _wrap(nu[j])
+            H = np.array([full_H[i] for i in rows])
+            PHT = P @ H.T
+            S = H @ PHT + R
+            gain = _solve(S, PHT.T, "EKF").T
+            nu = np.array(nu)
+            xn = (np.array(x) + gain @ nu).tolist()
+            xn[2], xn[5] = _wrap(xn[2]), _wrap(xn[5])
+            x = xn
+            I_KH = eye - gain @ H
+            P = I_KH @ P @ I_KH.T + gain @ R @ gain.T
+            Y[k, yrows] = nu
+            Ss[k][Sblock] = S
+        xs[k] = x
+        Ps[k] = P
+    return _finish("ekf", s, xs, Ps, Y, Ss, has, truth)
+
+
+# ---------------------------------------------------------------------------
+# UKF
+def _upper_factor(M):
+    """Upper Cholesky factor U (``U^T U = M``) of the symmetric ``M`` (6, 6): LAPACK's ``dpotrf``, the
+    jitter fallback of :func:`~kfcal_helpers.coop.filters.robust_sqrt` if it fails."""
+    U, info = lapack.dpotrf(M, lower=0, clean=1)
+    if info != 0:
+        return robust_sqrt(M)
+    return U
+
+
+def _angle_slice(positions):
+    """The positions of the bearings among the rows used (at most two) as a basic slice."""
+    if not positions:
+        return None
+    if len(positions) == 1:
+        return slice(positions[0], positions[0] + 1)
+    return slice(positions[0], positions[1] + 1, positions[1] - positions[0])
+
+
+def run_ukf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
+    """The UKF of :func:`~kfcal_helpers.coop.filters.run_ukf` in a plain loop, on measurements ``y``
+    (K, 5), with the true states ``truth`` (K, 6) for the NEES if given.
+
+    filterpy's ``UnscentedKalmanFilter`` with ``MerweScaledSigmaPoints`` (the setup's ``points``) as
+    :func:`~kfcal_helpers.coop.filters.make_ukf` configures it: sigma points ``x``, ``x + U_i``,
+    ``x - U_i`` from the rows of the upper Cholesky factor of ``(n + lambda) P``; the exact arcs on all
+    13 at once; circular means of the headings and bearings, wrapped residuals; P symmetrized after
+    every predict and update; the sigma points of the prior (filterpy recomputes them after its
+    predict) enter the update; ``P = P - K S K^T``.
+    """
+    s = _setup(setup, "ukf")
+    y = _check_y(y)
+    p, model, pts = s.params, s.measurement, s.points
+    K = y.shape[0]
+    rows = list(model.rows)
+    all_rows = len(rows) == N_MEAS
+    bsl = _angle_slice([j for j, i in enumerate(rows) if i in MEAS_ANGLES])
+    Qd, R = p.process_noise(s.Q), np.array(model.R)
+    points = MerweScaledSigmaPoints(N_STATES, alpha=pts.alpha, beta=pts.beta, kappa=pts.kappa)
+    Wm, Wc = points.Wm, points.Wc
+    scale = points.alpha ** 2 * (N_STATES + points.kappa)  # n + lambda
+    (dg, hg), (da, ha) = _arc_constants(p)
+    d2, h2 = np.array([dg, da]), np.array([hg, ha])
+    has = ~np.isnan(y[:, 0])
+    xs = np.empty((K, N_STATES))
+    Ps = np.empty((K, N_STATES, N_STATES))
+    Y = np.full((K, N_MEAS), np.nan)
+    Ss = np.full((K, N_MEAS, N_MEAS), np.nan)
+    yrows, Sblock = _store_block(rows)
+    n_sig = 2 * N_STATES + 1
+    sig = np.empty((n_sig, N_STATES))
+    fs = np.empty((n_sig, N_STATES))
+    hz = np.empty((n_sig, N_MEAS))
+    x = np.array(s.x0, dtype=float)
+    P = np.array(s.P0, dtype=float)
+
+    def sigma_points(x, P):  # filterpy's sigma_points with the symmetrized (n + lambda) P
+        M = scale * P
+        U = _upper_factor(0.5 * (M + M.T))
+        sig[0] = x
+        np.add(x, U, out=sig[1:N_STATES + 1])
+        np.subtract(x, U, out=sig[N_STATES + 1:])
+        return sig
+
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        if has[0]:
+            sigma_points(x, P)
+        for k in range(K):
+            if k > 0:
+                sigma_points(x, P)
+                mid = sig[:, 2::3] + h2  # the arc of every sigma point (model.arc)
+                np.add(sig[:, 0::3], d2 * np.cos(mid), out=fs[:, 0::3])
+                np.add(sig[:, 1::3], d2 * np.sin(mid), out=fs[:, 1::3])
+                fs[:, 2::3] = _PI - np.mod(_PI - (mid + h2), _TWO_PI)
+                x = Wm @ fs  # circular mean of the headings (STATE.mean)
+                a = fs[:, 2::3]
+                x[2::3] = np.arctan2(Wm @ np.sin(a), Wm @ np.cos(a))
+                r = fs - x
+                r[:, 2::3] = _PI - np.mod(_PI - r[:, 2::3], _TWO_PI)
+                P = (r.T * Wc) @ r + Qd
+                P = 0.5 * (P + P.T)
+                sigma_points(x, P)  # filterpy's sigma points of the prior
+            if has[k]:
+                # h of every sigma point (model.measure), then the rows used
+                dxi = sig[:, 3] - sig[:, 0]
+                deta = sig[:, 4] - sig[:, 1]
+                b = np.arctan2(deta, dxi)
+                hz[:, 1] = np.sqrt(dxi * dxi + deta * deta)
+                hz[:, 0] = b - sig[:, 2]
+                hz[:, 2] = b + _PI - sig[:, 5]
+                hz[:, 3:5] = sig[:, 3:5]
+                hz[:, 0:3:2] = _PI - np.mod(_PI - hz[:, 0:3:2], _TWO_PI)
+                Z = hz if all_rows else hz[:, rows]
+                zp = Wm @ Z
+                if bsl is not None:  # circular mean of the bearings (model.mean)
+                    a = Z[:, bsl]
+                    zp[bsl] = np.arctan2(Wm @ np.sin(a), Wm @ np.cos(a))
+                dz = Z - zp
+                if bsl is not None:
+                    dz[:, bsl] = _PI - np.mod(_PI - dz[:, bsl], _TWO_PI)
+                S = (dz.T * Wc) @ dz + R
+                dX = sig - x
+                dX[:, 2::3] = _PI - np.mod(_PI - dX[:, 2::3], _TWO_PI)
+                Pxz = (dX.T * Wc) @ dz
+                gain = _solve(S, Pxz.T, "UKF").T
+                nu = y[k, rows] - zp
+                if bsl is not None:
+                    nu[bsl] = _PI - np.mod(_PI - nu[bsl], _TWO_PI)
+                x = x + gain @ nu
+                x[2::3] = _PI - np.mod(_PI - x[2::3], _TWO_PI)
+                P = P - gain @ (S @ gain.T)
+                P = 0.5 * (P + P.T)
+                Y[k, yrows] = nu
+                Ss[k][Sblock] = S
+            xs[k] = x
+            Ps[k] = P
+    return _finish("ukf", s, xs, Ps, Y, Ss, has, truth)
+
+
+_RUNNERS = {"ekf": run_ekf_fast, "ukf": run_ukf_fast}
+
+
+def run_fast(y, setup: FilterSetup, truth=None) -> FastResult:
+    """Run the lean filter ``setup.filter`` ("ekf" or "ukf") on measurements ``y`` (K, 5), with the true
+    states ``truth`` (K, 6) for the NEES if given."""
+    setup = require_instance("setup", setup, FilterSetup)
+    require_choice("filter", setup.filter, FAST_FILTERS)
+    return _RUNNERS[setup.filter](y, setup, truth)
+
+
+def run_filter_fast(filter: str, y, params=None, *, truth=None, **settings) -> FastResult:
+    """The lean run of ``filter`` ("ekf" or "ukf"), with the arguments of
+    :func:`~kfcal_helpers.coop.filters.run_filter` (``settings``: ``Q``, ``R``, ``x0``, ``P0``,
+    ``measurements``, ``points``, ``wrap_innovations``)."""
+    filter = require_choice("filter", filter, FAST_FILTERS)
+    return run_fast(y, FilterSetup.build(filter, params, **settings), truth)
