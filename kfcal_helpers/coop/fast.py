@@ -117,6 +117,13 @@ def _wrap(a: float) -> float:
     return _PI - (_PI - a) % _TWO_PI
 
 
+def _wrap_into(v):
+    """Wrap the angles ``v`` (an array view) to (-pi, pi] in place, as ``pi - mod(pi - v, 2 pi)``."""
+    t = _PI - v
+    np.mod(t, _TWO_PI, out=t)
+    np.subtract(_PI, t, out=v)
+
+
 def _solve(S, B, name):
     """``S^-1 B`` for the innovation covariance S (m, m) and B (m, n): one LAPACK solve."""
     _, _, X, info = lapack.dgesv(S, B)
@@ -143,11 +150,16 @@ def _finish(name, s, x, P, Y, S, has, truth) -> FastResult:
     return FastResult(name, s.params.dt * np.arange(K), x, P, Y, S, nis, nees, tuple(rows))
 
 
-def _store_block(rows):
-    """Index of the rows used in the (K, 5) and (K, 5, 5) stores: basic slices for all five."""
+def _expand(Yc, Sc, rows):
+    """Innovations (K, m) and their covariances (K, m, m) of the rows used into the (K, 5) and (K, 5, 5)
+    arrays of all rows, NaN in the rows not used."""
     if len(rows) == N_MEAS:
-        return slice(None), (slice(None), slice(None))
-    return list(rows), np.ix_(list(rows), list(rows))
+        return Yc, Sc
+    K = Yc.shape[0]
+    Y, S = np.full((K, N_MEAS), np.nan), np.full((K, N_MEAS, N_MEAS), np.nan)
+    Y[:, rows] = Yc
+    S[:, np.array(rows)[:, None], np.array(rows)] = Sc
+    return Y, S
 
 
 def _setup(setup, filter) -> FilterSetup:
@@ -182,9 +194,8 @@ def run_ekf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
     ys = y.tolist()
     xs = np.empty((K, N_STATES))
     Ps = np.empty((K, N_STATES, N_STATES))
-    Y = np.full((K, N_MEAS), np.nan)
-    Ss = np.full((K, N_MEAS, N_MEAS), np.nan)
-    yrows, Sblock = _store_block(rows)
+    Yc = np.full((K, len(rows)), np.nan)
+    Sc = np.full((K, len(rows), len(rows)), np.nan)
     F = np.eye(N_STATES)
     x = [float(v) for v in s.x0]
     P = np.array(s.P0, dtype=float)
@@ -198,7 +209,7 @@ def run_ekf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
             mg, ma = tg + hg, ta + ha
             x = [xg + dg * math.cos(mg), eg + dg * math.sin(mg), _wrap(mg + hg),
                  xa + da * math.cos(ma), ea + da * math.sin(ma), _wrap(ma + ha)]
-            P = F @ P @ F.T + Qd
+            P = F.dot(P).dot(F.T) + Qd
         if has[k]:
             xg, eg, tg, xa, ea, ta = x
             dxi, deta = xa - xg, ea - eg
@@ -218,19 +229,20 @@ def run_ekf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
                 for j in bearings:
                     nu[j] = _wrap(nu[j])
             H = np.array([full_H[i] for i in rows])
-            PHT = P @ H.T
-            S = H @ PHT + R
+            PHT = P.dot(H.T)
+            S = H.dot(PHT) + R
             gain = _solve(S, PHT.T, "EKF").T
             nu = np.array(nu)
-            xn = (np.array(x) + gain @ nu).tolist()
+            xn = (np.array(x) + gain.dot(nu)).tolist()
             xn[2], xn[5] = _wrap(xn[2]), _wrap(xn[5])
             x = xn
-            I_KH = eye - gain @ H
-            P = I_KH @ P @ I_KH.T + gain @ R @ gain.T
-            Y[k, yrows] = nu
-            Ss[k][Sblock] = S
+            I_KH = eye - gain.dot(H)
+            P = I_KH.dot(P).dot(I_KH.T) + gain.dot(R).dot(gain.T)
+            Yc[k] = nu
+            Sc[k] = S
         xs[k] = x
         Ps[k] = P
+    Y, Ss = _expand(Yc, Sc, rows)
     return _finish("ekf", s, xs, Ps, Y, Ss, has, truth)
 
 
@@ -270,87 +282,137 @@ def run_ukf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
     p, model, pts = s.params, s.measurement, s.points
     K = y.shape[0]
     rows = list(model.rows)
-    all_rows = len(rows) == N_MEAS
-    bsl = _angle_slice([j for j, i in enumerate(rows) if i in MEAS_ANGLES])
+    m = len(rows)
+    all_rows = m == N_MEAS
+    bearings = [j for j, i in enumerate(rows) if i in MEAS_ANGLES]
+    bsl = _angle_slice(bearings)
     Qd, R = p.process_noise(s.Q), np.array(model.R)
     points = MerweScaledSigmaPoints(N_STATES, alpha=pts.alpha, beta=pts.beta, kappa=pts.kappa)
     Wm, Wc = points.Wm, points.Wc
     scale = points.alpha ** 2 * (N_STATES + points.kappa)  # n + lambda
     (dg, hg), (da, ha) = _arc_constants(p)
     d2, h2 = np.array([dg, da]), np.array([hg, ha])
+    zero_pi = np.array([0.0, _PI])
     has = ~np.isnan(y[:, 0])
+    yr = np.ascontiguousarray(y[:, rows])
     xs = np.empty((K, N_STATES))
     Ps = np.empty((K, N_STATES, N_STATES))
-    Y = np.full((K, N_MEAS), np.nan)
-    Ss = np.full((K, N_MEAS, N_MEAS), np.nan)
-    yrows, Sblock = _store_block(rows)
+    Yc = np.full((K, m), np.nan)
+    Sc = np.full((K, m, m), np.nan)
     n_sig = 2 * N_STATES + 1
-    sig = np.empty((n_sig, N_STATES))
-    fs = np.empty((n_sig, N_STATES))
-    hz = np.empty((n_sig, N_MEAS))
+    # work buffers, and views of them made once (the loop writes into them in place)
+    sig = np.empty((n_sig, N_STATES))  # the sigma points
+    offsets = np.zeros((n_sig, N_STATES))  # sigma points - x: 0, U_i, -U_i
+    off_plus, off_minus = offsets[1:N_STATES + 1], offsets[N_STATES + 1:]
+    step = np.empty((n_sig, N_STATES))  # the arc's increments: chords and turns w dt
+    step[:, 2::3] = 2.0 * h2
+    step_c, step_s = step[:, 0::3], step[:, 1::3]
+    fs = np.empty((n_sig, N_STATES))  # the sigma points moved by the arcs
+    fs_th = fs[:, 2::3]
+    mid = np.empty((n_sig, 2))
+    trig = np.empty((n_sig, 4))  # sin and cos of two angles of every sigma point, for circular means
+    trig_s, trig_c = trig[:, :2], trig[:, 2:]
+    r = np.empty((n_sig, N_STATES))
+    rel = np.empty((n_sig, 2))  # UAV - UGV position
+    rel_e, rel_n = rel[:, 0], rel[:, 1]
+    bearing = np.empty((n_sig, 1))
+    hz = np.empty((n_sig, N_MEAS))  # h of every sigma point (bearings unwrapped)
+    hz_b, hz_r, hz_gps = hz[:, 0:3:2], hz[:, 1], hz[:, 3:5]
+    Z = hz if all_rows else np.empty((n_sig, m))  # the rows used
+    dz = np.empty((n_sig, m))
+    nb = len(bearings)
+    if nb:
+        Z_b, dz_b = Z[:, bsl], dz[:, bsl]
+        Zs, Zc = trig[:, :nb], trig[:, 2:2 + nb]
+    sig_th, sig_g, sig_a = sig[:, 2::3], sig[:, 0:2], sig[:, 3:5]
     x = np.array(s.x0, dtype=float)
     P = np.array(s.P0, dtype=float)
+    pi2 = _PI ** 2
 
-    def sigma_points(x, P):  # filterpy's sigma_points with the symmetrized (n + lambda) P
-        M = scale * P
-        U = _upper_factor(0.5 * (M + M.T))
-        sig[0] = x
-        np.add(x, U, out=sig[1:N_STATES + 1])
-        np.subtract(x, U, out=sig[N_STATES + 1:])
-        return sig
+    def sigma_points(x, P):  # filterpy's sigma_points (dpotrf reads the upper triangle of (n + lambda) P)
+        U = _upper_factor(scale * P)
+        off_plus[...] = U
+        np.negative(U, out=off_minus)
+        np.add(x, offsets, out=sig)
 
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
         if has[0]:
-            sigma_points(x, P)
+            sigma_points(x, 0.5 * (P + P.T))
         for k in range(K):
             if k > 0:
+                reach = [math.sqrt(scale * P[2, 2]), math.sqrt(scale * P[5, 5])]  # bounds of |U| in the headings
                 sigma_points(x, P)
-                mid = sig[:, 2::3] + h2  # the arc of every sigma point (model.arc)
-                np.add(sig[:, 0::3], d2 * np.cos(mid), out=fs[:, 0::3])
-                np.add(sig[:, 1::3], d2 * np.sin(mid), out=fs[:, 1::3])
-                fs[:, 2::3] = _PI - np.mod(_PI - (mid + h2), _TWO_PI)
-                x = Wm @ fs  # circular mean of the headings (STATE.mean)
-                a = fs[:, 2::3]
-                x[2::3] = np.arctan2(Wm @ np.sin(a), Wm @ np.cos(a))
-                r = fs - x
-                r[:, 2::3] = _PI - np.mod(_PI - r[:, 2::3], _TWO_PI)
-                P = (r.T * Wc) @ r + Qd
-                P = 0.5 * (P + P.T)
+                # the arc of every sigma point (model.arc): chord d along theta + w dt / 2, turn w dt; the
+                # headings stay unwrapped: only their sines and cosines and wrapped residuals are used
+                np.add(sig_th, h2, out=mid)
+                np.cos(mid, out=step_c)
+                step_c *= d2
+                np.sin(mid, out=step_s)
+                step_s *= d2
+                np.add(sig, step, out=fs)
+                # the mean, circular in the headings (STATE.mean)
+                np.sin(fs_th, out=trig_s)
+                np.cos(fs_th, out=trig_c)
+                sg, sa, cg, ca = Wm.dot(trig).tolist()
+                x = Wm.dot(fs)
+                x[2], x[5] = math.atan2(sg, cg), math.atan2(sa, ca)
+                # residuals wrap(fs - x): the heading of sigma point 0 (the moved mean) sets the branch;
+                # the others lie within ``reach`` of it, so a shift of x by a multiple of 2 pi wraps them all
+                shift = x.copy()
+                wrapped = True
+                for j, i in enumerate((2, 5)):
+                    c = float(fs[0, i])
+                    w = _wrap(c - x[i])
+                    shift[i] = c - w
+                    wrapped = wrapped and reach[j] + abs(w) < 0.5 * _PI
+                np.subtract(fs, shift, out=r)
+                if not wrapped:
+                    np.subtract(fs, x, out=r)
+                    _wrap_into(r[:, 2::3])
+                P = (r.T * Wc).dot(r) + Qd
                 sigma_points(x, P)  # filterpy's sigma points of the prior
             if has[k]:
                 # h of every sigma point (model.measure), then the rows used
-                dxi = sig[:, 3] - sig[:, 0]
-                deta = sig[:, 4] - sig[:, 1]
-                b = np.arctan2(deta, dxi)
-                hz[:, 1] = np.sqrt(dxi * dxi + deta * deta)
-                hz[:, 0] = b - sig[:, 2]
-                hz[:, 2] = b + _PI - sig[:, 5]
-                hz[:, 3:5] = sig[:, 3:5]
-                hz[:, 0:3:2] = _PI - np.mod(_PI - hz[:, 0:3:2], _TWO_PI)
-                Z = hz if all_rows else hz[:, rows]
-                zp = Wm @ Z
-                if bsl is not None:  # circular mean of the bearings (model.mean)
-                    a = Z[:, bsl]
-                    zp[bsl] = np.arctan2(Wm @ np.sin(a), Wm @ np.cos(a))
-                dz = Z - zp
-                if bsl is not None:
-                    dz[:, bsl] = _PI - np.mod(_PI - dz[:, bsl], _TWO_PI)
-                S = (dz.T * Wc) @ dz + R
-                dX = sig - x
-                dX[:, 2::3] = _PI - np.mod(_PI - dX[:, 2::3], _TWO_PI)
-                Pxz = (dX.T * Wc) @ dz
+                np.subtract(sig_a, sig_g, out=rel)
+                np.arctan2(rel[:, 1:2], rel[:, 0:1], out=bearing)
+                np.hypot(rel_e, rel_n, out=hz_r)
+                np.add(bearing, zero_pi, out=hz_b)
+                np.subtract(hz_b, sig_th, out=hz_b)
+                hz_gps[...] = sig_a
+                if not all_rows:
+                    np.take(hz, rows, axis=1, out=Z)
+                zp = Wm.dot(Z)
+                if nb:  # circular mean and wrapped residuals of the bearings (model.mean, .residual)
+                    np.sin(Z_b, out=Zs)
+                    np.cos(Z_b, out=Zc)
+                    sc = Wm.dot(trig).tolist()
+                    for j, col in enumerate(bearings):
+                        zp[col] = math.atan2(sc[j], sc[2 + j])
+                np.subtract(Z, zp, out=dz)
+                if nb:
+                    _wrap_into(dz_b)
+                S = (dz.T * Wc).dot(dz) + R
+                # the state residuals of the sigma points, wrap(sig - x) = +-U: no heading wraps while the
+                # heading entries of U stay below pi, i.e. while (n + lambda) P_theta,theta < pi^2
+                dX = offsets
+                if P[2, 2] * scale >= pi2 or P[5, 5] * scale >= pi2:
+                    dX = sig - x
+                    _wrap_into(dX[:, 2::3])
+                Pxz = (dX.T * Wc).dot(dz)
                 gain = _solve(S, Pxz.T, "UKF").T
-                nu = y[k, rows] - zp
-                if bsl is not None:
-                    nu[bsl] = _PI - np.mod(_PI - nu[bsl], _TWO_PI)
-                x = x + gain @ nu
-                x[2::3] = _PI - np.mod(_PI - x[2::3], _TWO_PI)
-                P = P - gain @ (S @ gain.T)
-                P = 0.5 * (P + P.T)
-                Y[k, yrows] = nu
-                Ss[k][Sblock] = S
+                nu = yr[k] - zp
+                for j in bearings:
+                    nu[j] = _wrap(float(nu[j]))
+                x = x + gain.dot(nu)
+                x[2], x[5] = _wrap(float(x[2])), _wrap(float(x[5]))
+                P = P - Pxz.dot(gain.T)  # K S K^T = Pxz K^T
+                Yc[k] = nu
+                Sc[k] = S
             xs[k] = x
             Ps[k] = P
+    # filterpy symmetrizes P after every step; here only the stored ones (the sigma points read one triangle)
+    Ps = 0.5 * (Ps + np.swapaxes(Ps, 1, 2))
+    Y, Ss = _expand(Yc, Sc, rows)
     return _finish("ukf", s, xs, Ps, Y, Ss, has, truth)
 
 
