@@ -199,6 +199,20 @@ def run_ekf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
     F = np.eye(N_STATES)
     x = [float(v) for v in s.x0]
     P = np.array(s.P0, dtype=float)
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        try:
+            xs, Ps, Yc, Sc = _ekf_loop(K, has, ys, rows, bearings, wrap, x, P, F, eye, Qd, R, dt, vg, va, dg, hg, da, ha,
+                                       xs, Ps, Yc, Sc)
+        except ValueError as e:
+            if "math domain" not in str(e):
+                raise
+            raise ValueError("y: the EKF diverged (non-finite estimate)") from None
+    Y, Ss = _expand(Yc, Sc, rows)
+    return _finish("ekf", s, xs, Ps, Y, Ss, has, truth)
+
+
+def _ekf_loop(K, has, ys, rows, bearings, wrap, x, P, F, eye, Qd, R, dt, vg, va, dg, hg, da, ha, xs, Ps, Yc, Sc):
+    """The EKF's steps (:func:`run_ekf_fast`): fills and returns xs, Ps, Yc, Sc."""
     for k in range(K):
         if k > 0:
             xg, eg, tg, xa, ea, ta = x
@@ -242,8 +256,7 @@ def run_ekf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
             Sc[k] = S
         xs[k] = x
         Ps[k] = P
-    Y, Ss = _expand(Yc, Sc, rows)
-    return _finish("ekf", s, xs, Ps, Y, Ss, has, truth)
+    return xs, Ps, Yc, Sc
 
 
 # ---------------------------------------------------------------------------
@@ -340,8 +353,9 @@ def run_ukf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
             sigma_points(x, 0.5 * (P + P.T))
         for k in range(K):
             if k > 0:
-                reach = [math.sqrt(scale * P[2, 2]), math.sqrt(scale * P[5, 5])]  # bounds of |U| in the headings
                 sigma_points(x, P)
+                # bounds of |U| in the headings (NaN, hence the general path below, if P lost its diagonal)
+                reach = [math.sqrt(max(scale * P[2, 2], 0.0)), math.sqrt(max(scale * P[5, 5], 0.0))]
                 # the arc of every sigma point (model.arc): chord d along theta + w dt / 2, turn w dt; the
                 # headings stay unwrapped: only their sines and cosines and wrapped residuals are used
                 np.add(sig_th, h2, out=mid)
