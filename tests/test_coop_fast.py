@@ -151,7 +151,8 @@ def test_fast_validates_its_arguments(log, call, name):
         call(log.y)
 
 
-@pytest.mark.parametrize("filter, settings", [("ekf", {"P0": 1e300 * np.eye(6)}), ("ukf", {"Q": 1e306 * np.eye(6)})])
+@pytest.mark.parametrize("filter, settings", [("ekf", {"P0": 1e300 * np.eye(6)}), ("ekf", {"P0": 1e308 * np.eye(6)}),
+                                              ("ukf", {"Q": 1e308 * np.eye(6)}), ("ukf", {"P0": 1e308 * np.eye(6)})])
 def test_a_diverging_fast_run_is_one_value_error_without_warnings(log, filter, settings):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no numpy warning escapes

@@ -265,9 +265,19 @@ def _upper_factor(M):
     """Upper Cholesky factor U (``U^T U = M``) of the symmetric ``M`` (6, 6): LAPACK's ``dpotrf``, the
     jitter fallback of :func:`~kfcal_helpers.coop.filters.robust_sqrt` if it fails."""
     U, info = lapack.dpotrf(M, lower=0, clean=1)
-    if info != 0:
+    if info == 0:
+        return U
+    half = 0.5 * M
+    M = half + half.T  # symmetrized without overflow
+    diverged = "P: the UKF covariance holds non-finite numbers (the UKF diverged)"
+    if not np.isfinite(M).all():
+        raise ValueError(diverged)
+    try:
         return robust_sqrt(M)
-    return U
+    except ValueError as e:  # its jitter overflowed (scipy's "array must not contain infs or NaNs")
+        if str(e).startswith("P:"):
+            raise
+        raise ValueError(diverged) from None
 
 
 def _angle_slice(positions):
@@ -286,9 +296,16 @@ def run_ukf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
     filterpy's ``UnscentedKalmanFilter`` with ``MerweScaledSigmaPoints`` (the setup's ``points``) as
     :func:`~kfcal_helpers.coop.filters.make_ukf` configures it: sigma points ``x``, ``x + U_i``,
     ``x - U_i`` from the rows of the upper Cholesky factor of ``(n + lambda) P``; the exact arcs on all
-    13 at once; circular means of the headings and bearings, wrapped residuals; P symmetrized after
-    every predict and update; the sigma points of the prior (filterpy recomputes them after its
-    predict) enter the update; ``P = P - K S K^T``.
+    13 at once; circular means of the headings and bearings, wrapped residuals; the sigma points of the
+    prior (filterpy recomputes them after its predict) enter the update; ``P = P - K S K^T``.
+
+    Three shortcuts, each equal to filterpy's step to rounding: the Cholesky factor reads one triangle
+    of P, so P is symmetrized (as ``run_ukf`` does after every step) only where it is stored; the
+    sigma points' state residuals ``wrap(sig - x)`` are the offsets ``+-U_i`` themselves while
+    ``(n + lambda) P`` keeps its heading variances below pi^2; and the residuals of the moved sigma
+    points are wrapped by one shift of the mean by a multiple of 2 pi while their headings lie within
+    pi / 2 of the moved centre point (otherwise the general wraps run).  Two vehicles at the same
+    position give the bearing of ``arctan2(0, 0) = 0`` here (filterpy's h raises).
     """
     s = _setup(setup, "ukf")
     y = _check_y(y)
@@ -302,6 +319,7 @@ def run_ukf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
     Qd, R = p.process_noise(s.Q), np.array(model.R)
     points = MerweScaledSigmaPoints(N_STATES, alpha=pts.alpha, beta=pts.beta, kappa=pts.kappa)
     Wm, Wc = points.Wm, points.Wc
+    Wc_col = Wc[:, None]
     scale = points.alpha ** 2 * (N_STATES + points.kappa)  # n + lambda
     (dg, hg), (da, ha) = _arc_constants(p)
     d2, h2 = np.array([dg, da]), np.array([hg, ha])
@@ -405,14 +423,15 @@ def run_ukf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
                 np.subtract(Z, zp, out=dz)
                 if nb:
                     _wrap_into(dz_b)
-                S = (dz.T * Wc).dot(dz) + R
+                dzw = dz * Wc_col  # Wc-weighted, for S and Pxz
+                S = dz.T.dot(dzw) + R
                 # the state residuals of the sigma points, wrap(sig - x) = +-U: no heading wraps while the
                 # heading entries of U stay below pi, i.e. while (n + lambda) P_theta,theta < pi^2
                 dX = offsets
                 if P[2, 2] * scale >= pi2 or P[5, 5] * scale >= pi2:
                     dX = sig - x
                     _wrap_into(dX[:, 2::3])
-                Pxz = (dX.T * Wc).dot(dz)
+                Pxz = dX.T.dot(dzw)
                 gain = _solve(S, Pxz.T, "UKF").T
                 nu = yr[k] - zp
                 for j in bearings:
@@ -424,8 +443,8 @@ def run_ukf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
                 Sc[k] = S
             xs[k] = x
             Ps[k] = P
-    # filterpy symmetrizes P after every step; here only the stored ones (the sigma points read one triangle)
-    Ps = 0.5 * (Ps + np.swapaxes(Ps, 1, 2))
+        # filterpy symmetrizes P after every step; here only the stored ones (the sigma points read one triangle)
+        Ps = 0.5 * (Ps + np.swapaxes(Ps, 1, 2))
     Y, Ss = _expand(Yc, Sc, rows)
     return _finish("ukf", s, xs, Ps, Y, Ss, has, truth)
 
