@@ -110,6 +110,7 @@ def main(argv=None) -> int:
 
 def _main(argv, state: dict) -> int:
     command = state["command"]
+    args = None
     try:
         parser = _build_parser()
         try:
@@ -139,7 +140,9 @@ def _main(argv, state: dict) -> int:
                     f"the range this command handles")
         return EXIT_USAGE
     except MemoryError:
-        _error_line(f"{command}: error: not enough memory for this run; use fewer or shorter realizations")
+        advice = ("use a shorter log (fewer steps)" if getattr(args, "log", None) is not None
+                  else "use fewer or shorter realizations")
+        _error_line(f"{command}: error: not enough memory for this run; {advice}")
         return EXIT_USAGE
     except OSError as exc:
         _error_line(f"{command}: error: {_os_error(exc)}")

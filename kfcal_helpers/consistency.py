@@ -6,6 +6,13 @@ divided by N.  The two-sided acceptance region at significance ``alpha`` is
 ``[chi2.ppf(alpha/2, N*n)/N, chi2.ppf(1 - alpha/2, N*n)/N]``.  The same formula
 with N replaced by the number of time steps K bounds the time average of one run.
 
+The sampling bands of Monte Carlo statistics, at per-entry significance ``level`` (two-sided), for
+``n`` independent realizations: :func:`t_band` (a mean, with the ensemble standard deviation),
+:func:`normal_band` (a mean of terms of known variance), :func:`variance_band` (a variance, chi-square),
+:func:`correlation_band` (a centred correlation, Fisher's z), :func:`uncentred_correlation_band` (the
+correlation of two zero-mean vectors, Student t) and :func:`chi2_bounds` (an average of chi-square
+statistics).  Each takes arrays and returns the half-width or the ``(lower, upper)`` bounds.
+
 The Monte Carlo results of every problem share one interface (:class:`MonteCarloSummary`):
 ``n_runs``, ``alpha`` and ``checks() -> {name: Check}``, printed by :func:`format_checks`.
 """
@@ -18,10 +25,10 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from scipy import stats
 
-from .validation import require_int, require_probability
+from .validation import MIN_BAND_ALPHA, require_int, require_significance
 
-__all__ = ["chi2_bounds", "normalized_squares", "nees", "nis", "inside_fraction", "Check", "MonteCarloSummary",
-           "format_checks"]
+__all__ = ["chi2_bounds", "t_band", "normal_band", "variance_band", "correlation_band", "uncentred_correlation_band",
+           "normalized_squares", "nees", "nis", "inside_fraction", "Check", "MonteCarloSummary", "format_checks"]
 
 
 def chi2_bounds(dim: int, n_samples: int, alpha: float = 0.05) -> tuple[float, float]:
@@ -33,8 +40,9 @@ def chi2_bounds(dim: int, n_samples: int, alpha: float = 0.05) -> tuple[float, f
         Dimension of the state (NEES) or measurement (NIS).
     n_samples : int, >= 1
         Number of Monte Carlo runs averaged (or time steps, for a time average).
-    alpha : float in (0, 1)
-        Significance level of the two-sided test.
+    alpha : float in [1e-14, 1) (:data:`~kfcal_helpers.validation.MIN_BAND_ALPHA`)
+        Significance level of the two-sided test (a Bonferroni-split level included); below the
+        limit the upper quantile ``ppf(1 - alpha/2)`` would be infinite.
 
     Returns
     -------
@@ -42,11 +50,86 @@ def chi2_bounds(dim: int, n_samples: int, alpha: float = 0.05) -> tuple[float, f
     """
     dim = require_int("dim", dim, minimum=1)
     n_samples = require_int("n_samples", n_samples, minimum=1)
-    alpha = require_probability("alpha", alpha)
+    alpha = require_significance("alpha", alpha, minimum=MIN_BAND_ALPHA)
     dof = dim * n_samples
     lower = stats.chi2.ppf(alpha / 2, dof) / n_samples
     upper = stats.chi2.ppf(1 - alpha / 2, dof) / n_samples
     return float(lower), float(upper)
+
+
+def _level(level) -> float:
+    return require_significance("level", level, minimum=MIN_BAND_ALPHA)
+
+
+def _runs(n, minimum: int = 2) -> int:
+    return require_int("n", n, minimum=minimum)
+
+
+def t_band(sd, n: int, level: float):
+    """Half-width of the band of an ensemble mean: ``t_{n-1}(1 - level/2) sd / sqrt(n)``.
+
+    sd : array (any shape), the ensemble standard deviation of the averaged quantity (its units)
+    n : int >= 2, realizations averaged; level : per-entry significance in (0, 1).
+    Exact for independent Gaussian realizations (``sqrt(n) mean / sd`` is Student t, n - 1 dof).
+    Returns an array shaped like ``sd`` (the band is ``[-half, +half]`` around 0).
+    """
+    n, level = _runs(n), _level(level)
+    return stats.t.ppf(1 - level / 2, n - 1) * np.asarray(sd, dtype=float) / np.sqrt(n)
+
+
+def normal_band(var, n: int, level: float):
+    """Half-width of the band of a mean of ``n`` independent terms of known variance ``var``:
+    ``z sqrt(var / n)``, ``z = norm.ppf(1 - level/2)`` (normal approximation).
+
+    var : array, the variance of one term (its units squared); n : int >= 1; level in (0, 1).
+    Returns an array shaped like ``var``, in the units of the term.
+    """
+    n, level = _runs(n, 1), _level(level)
+    return stats.norm.ppf(1 - level / 2) * np.sqrt(np.asarray(var, dtype=float) / n)
+
+
+def variance_band(expected, dof: int, level: float):
+    """The chi-square interval of a variance estimate: ``expected chi2_dof(level/2) / dof`` to
+    ``expected chi2_dof(1 - level/2) / dof``.
+
+    expected : array, the true variance (its units); dof : int >= 1, ``n - 1`` for the centred ensemble
+    variance of n realizations, ``n`` for the uncentred mean square of zero-mean ones; level in (0, 1).
+    Returns ``(lower, upper)``, arrays shaped like ``expected``.
+    """
+    dof, level = _runs(dof, 1), _level(level)
+    expected = np.asarray(expected, dtype=float)
+    return (expected * stats.chi2.ppf(level / 2, dof) / dof,
+            expected * stats.chi2.ppf(1 - level / 2, dof) / dof)
+
+
+def correlation_band(rho, n: int, level: float):
+    """Fisher's band of an ensemble correlation around the true one, ``rho``:
+    ``tanh(atanh(rho) -+ z / sqrt(n - 3))``, ``z = norm.ppf(1 - level/2)``.
+
+    rho : array in [-1, 1] (clipped); a true correlation of exactly +-1 has the band [+-1, +-1].
+    n : int >= 2 realizations; for n <= 3 (too few for Fisher's interval) the band is [-1, 1].
+    Returns ``(lower, upper)``, arrays shaped like ``rho`` (dimensionless).
+    """
+    n, level = _runs(n), _level(level)
+    rho = np.asarray(rho, dtype=float)
+    if n <= 3:
+        return np.full_like(rho, -1.0), np.full_like(rho, 1.0)
+    fisher = stats.norm.ppf(1 - level / 2) / np.sqrt(n - 3)
+    with np.errstate(divide="ignore"):  # atanh(+-1) = +-inf, tanh(+-inf) = +-1
+        z_rho = np.arctanh(np.clip(rho, -1.0, 1.0))
+    return np.tanh(z_rho - fisher), np.tanh(z_rho + fisher)
+
+
+def uncentred_correlation_band(n: int, level: float) -> float:
+    """Half-width of the band of ``sum a_l b_l / sqrt(sum a_l^2 sum b_l^2)`` over ``n`` realizations of
+    two independent zero-mean Gaussians: ``q / sqrt(n - 1 + q^2)``, ``q = t_{n-1}(1 - level/2)``.
+
+    Exact: the correlation is the cosine of the angle between two vectors in R^n, and
+    ``rho sqrt((n - 1) / (1 - rho^2))`` is Student t with n - 1 degrees of freedom.  n >= 2.
+    """
+    n, level = _runs(n), _level(level)
+    q = stats.t.ppf(1 - level / 2, n - 1)
+    return q / np.sqrt(n - 1 + q**2)
 
 
 def normalized_squares(err: np.ndarray, cov: np.ndarray) -> np.ndarray:

@@ -19,7 +19,10 @@ into partial sums (or per-run arrays), how to add those up, and what a chunk cos
 * **Memory and time.**  :func:`estimate` adds up what the experiment says it needs (the fixed part,
   every chunk in flight, the statistics at the end) and refuses, with its estimate, a run whose
   peak exceeds :data:`MEMORY_LIMIT` or whose one-thread time exceeds :data:`MAX_SECONDS`, before
-  any work starts.  Fewer chunks fly at once when more would not fit.
+  any work starts.  Fewer chunks fly at once when more would not fit.  With two or more chunks in
+  flight (on worker threads) the end's statistics are counted on top of them, because memory freed by
+  a worker thread stays with that thread's allocator; one chunk at a time runs in the calling thread
+  and the end reuses its memory (``peak = fixed + max(chunk, final)``).
 * **Progress and cancellation.**  A progress bar over realizations (quiet under tests and CI,
   :mod:`kfcal_helpers.progress`).  An exception in the calling thread while chunks run
   (``KeyboardInterrupt`` from Ctrl-C, or whatever the command line raises on SIGTERM) cancels the
@@ -110,8 +113,8 @@ class Chunk:
     """What a running chunk sees of the core: ``tick(n)`` (n realizations done), ``cancelled``,
     ``check()`` (raise :class:`Cancelled` when cancelled)."""
 
-    def __init__(self, cancel: threading.Event, lock: threading.Lock, counter: list):
-        self._cancel, self._lock, self._counter = cancel, lock, counter
+    def __init__(self, cancel: threading.Event, lock: threading.Lock, counter: list, on_tick=None):
+        self._cancel, self._lock, self._counter, self._on_tick = cancel, lock, counter, on_tick
         self.ticked = 0
 
     @property
@@ -126,6 +129,8 @@ class Chunk:
         self.ticked += n
         with self._lock:
             self._counter[0] += n
+        if self._on_tick is not None:  # a chunk in the calling thread moves the bar at once
+            self._on_tick()
         self.check()
 
 
@@ -181,12 +186,14 @@ class Estimate:
 
 
 def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *, extra_bytes: float = 0.0,
-             runs_name: str = "n_runs", params_name: str = "params", what: str = "one realization") -> Estimate:
+             runs_name: str = "n_runs", params_name: str = "params", what: str = "one realization",
+             scenario_advice: str = "use a smaller scenario") -> Estimate:
     """The memory and time of ``run(experiment, n_runs, workers=workers)``, before it starts.
 
     ``extra_bytes``: what the caller needs after the run while its result is alive (the command
     line's figures, its JSON).  ValueError naming ``params_name`` when even one realization at a time
-    does not fit in :data:`MEMORY_LIMIT` (``what`` describes one realization in the message), naming
+    does not fit in :data:`MEMORY_LIMIT` (the message: ``"{params_name}: {what} needs about ... MB, more
+    than the 500 MB allowed; {scenario_advice}"``, ``what`` describing one realization), naming
     ``runs_name`` when ``n_runs`` realizations need too much memory or more than :data:`MAX_SECONDS`.
     """
     n_runs = require_int(runs_name, n_runs, minimum=1)
@@ -196,18 +203,22 @@ def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *,
     size = min(chunk, n_runs)
     per_chunk = float(experiment.chunk_bytes(size))
     fixed = float(experiment.fixed_bytes(n_runs))
-    fit = int((MEMORY_LIMIT - fixed) // per_chunk) if per_chunk > 0 else workers
-    in_flight = max(1, min(workers, n_chunks, fit))
     final = float(experiment.final_bytes(n_runs)) + float(extra_bytes)
-    peak = fixed + max(in_flight * per_chunk, final)
+    # Chunks on worker threads: what a worker frees stays with its thread's allocator pool (glibc keeps
+    # an arena per thread), so the last phase, in the calling thread, comes on top of the chunks.  One
+    # chunk at a time runs in the calling thread, whose freed memory the last phase reuses.
+    fit = int((MEMORY_LIMIT - fixed - final) // per_chunk) if per_chunk > 0 else workers
+    in_flight = max(1, min(workers, n_chunks, fit))
+    peak = fixed + (in_flight * per_chunk + final if in_flight > 1 else max(per_chunk, final))
     seconds = float(experiment.seconds(n_runs))
     if peak > MEMORY_LIMIT:
         one = float(experiment.fixed_bytes(1)) + max(float(experiment.chunk_bytes(1)),
                                                      float(experiment.final_bytes(1)) + float(extra_bytes))
-        name, advice = ((params_name, "use a smaller scenario") if one > MEMORY_LIMIT
-                        else (runs_name, "use fewer realizations"))
-        raise ValueError(f"{name}: {n_runs} realizations ({what}) need about {peak / 1e6:.0f} MB, more than "
-                         f"the {MEMORY_LIMIT / 1e6:.0f} MB allowed; {advice}")
+        if one > MEMORY_LIMIT:
+            raise ValueError(f"{params_name}: {what} needs about {one / 1e6:.0f} MB, more than the "
+                             f"{MEMORY_LIMIT / 1e6:.0f} MB allowed; {scenario_advice}")
+        raise ValueError(f"{runs_name}: {n_runs} realizations ({what}) need about {peak / 1e6:.0f} MB, more than "
+                         f"the {MEMORY_LIMIT / 1e6:.0f} MB allowed; use fewer realizations")
     if seconds > MAX_SECONDS:
         raise ValueError(f"{runs_name}: {n_runs} realizations would take about {seconds / 3600:.3g} h, more "
                          f"than the {MAX_SECONDS / 3600:g} h allowed; use fewer")
@@ -216,20 +227,20 @@ def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *,
 
 def run(experiment: Experiment, n_runs: int, seed=0, *, workers: int | None = None, progress: bool | None = False,
         desc: str = "Monte Carlo", extra_bytes: float = 0.0, runs_name: str = "n_runs",
-        params_name: str = "params", what: str = "one realization"):
+        params_name: str = "params", what: str = "one realization", scenario_advice: str = "use a smaller scenario"):
     """Run ``n_runs`` realizations of ``experiment`` in seeded chunks on threads; return
     ``experiment.result(total, n_runs, seconds)``.
 
     seed : int in [0, 2**63 - 1], None (fresh entropy) or a numpy Generator (:func:`chunk_generators`)
     workers : threads (default :func:`default_workers`); the result does not depend on it
     progress : show a bar over realizations (None: unless CI or KFCAL_QUIET is set)
-    extra_bytes, runs_name, params_name, what : passed to :func:`estimate`, which runs first
+    extra_bytes, runs_name, params_name, what, scenario_advice : passed to :func:`estimate`, which runs first
     """
     n_runs = require_int(runs_name, n_runs, minimum=1)
     if not isinstance(seed, np.random.Generator):
         seed = require_seed("seed", seed)
     plan = estimate(experiment, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,
-                    params_name=params_name, what=what)
+                    params_name=params_name, what=what, scenario_advice=scenario_advice)
     start = time.perf_counter()
     chunks = chunk_generators(plan.chunk, n_runs, seed)
     cancel, lock, counter = threading.Event(), threading.Lock(), [0, 0]  # ticks by workers, ticks shown
@@ -242,8 +253,8 @@ def run(experiment: Experiment, n_runs: int, seed=0, *, workers: int | None = No
         if new:
             bar.update(new)
 
-    def one(size, rng):
-        chunk = Chunk(cancel, lock, counter)
+    def one(size, rng, here=False):
+        chunk = Chunk(cancel, lock, counter, show if here else None)
         try:
             part = experiment.run_chunk(size, rng, chunk)
         except Cancelled:
@@ -257,7 +268,7 @@ def run(experiment: Experiment, n_runs: int, seed=0, *, workers: int | None = No
     try:
         if plan.in_flight == 1:
             for size, rng in chunks:
-                total = experiment.add(total, one(size, rng))
+                total = experiment.add(total, one(size, rng, here=True))
                 show()
         else:
             pool = ThreadPoolExecutor(max_workers=plan.in_flight, thread_name_prefix="kfcal-mc")

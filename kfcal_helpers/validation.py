@@ -22,11 +22,24 @@ __all__ = [
     "require_seed",
     "require_instance",
     "require_probability",
+    "require_significance",
+    "MIN_ALPHA",
+    "MIN_BAND_ALPHA",
     "require_mask",
     "as_generator",
     "cli_int",
     "cli_float",
 ]
+
+#: the smallest significance level a user may ask for (``alpha`` of a Monte Carlo, a log summary, the CLI's
+#: ``--alpha``).  Every band is a two-sided quantile ``ppf(1 - a/2)``, finite only while ``a/2`` is above
+#: the float spacing below 1 (1.1e-16).  A simultaneous (Bonferroni) band splits ``alpha`` over its
+#: entries; an accepted run keeps fewer than 500e6 / 8 = 6.25e7 float64 entries (the memory limit), so
+#: every split level stays at or above ``MIN_ALPHA / 1e8 = MIN_BAND_ALPHA``.
+MIN_ALPHA = 1e-6
+#: the smallest per-entry significance a band computation takes (``chi2_bounds``): ``1 - a/2`` then
+#: still differs from 1 by about 45 float spacings, so the quantiles are finite
+MIN_BAND_ALPHA = 1e-14
 
 #: the largest seed accepted (numpy.random.default_rng takes any integer >= 0; 2**63 - 1 keeps it an int64)
 MAX_SEED = 2**63 - 1
@@ -131,6 +144,21 @@ def require_probability(name: str, value, closed_upper: bool = False) -> float:
         ok = math.isfinite(v) and 0.0 < v and (v <= 1.0 if closed_upper else v < 1.0)
     if not ok:
         raise ValueError(f"{name} must be a number in (0, 1{upper}, got {value!r}")
+    return v
+
+
+def require_significance(name: str, value, minimum: float = MIN_ALPHA) -> float:
+    """Return ``value`` as a float; raise unless it is a significance level in [``minimum``, 1).
+
+    ``minimum`` defaults to :data:`MIN_ALPHA` (1e-6), the limit for the levels users pass: with it every
+    band derived from ``alpha``, the Bonferroni-split ones included, stays finite (see :data:`MIN_ALPHA`).
+    Band computations that receive an already split level pass :data:`MIN_BAND_ALPHA` (1e-14)."""
+    ok = isinstance(value, (Real, np.floating, np.integer)) and not isinstance(value, bool)
+    if ok:
+        v = float(value)
+        ok = math.isfinite(v) and minimum <= v < 1.0
+    if not ok:
+        raise ValueError(f"{name} must be a number in [{minimum:g}, 1) (a significance level), got {value!r}")
     return v
 
 

@@ -127,6 +127,7 @@ def test_filterpy_progress_moves_every_realization(monkeypatch):
     it moves well within every second, not once per 500-realization chunk (about 14 s)."""
     import time
 
+    from kfcal_helpers import montecarlo as core
     from kfcal_helpers.calibration import montecarlo
 
     calls = []
@@ -141,7 +142,7 @@ def test_filterpy_progress_moves_every_realization(monkeypatch):
         def close(self):
             calls.append(("close", 0, time.perf_counter()))
 
-    monkeypatch.setattr(montecarlo, "_progress_bar", Recorder)
+    monkeypatch.setattr(core, "progress_bar", Recorder)
     run_monte_carlo(P0, 12, seed=0, filter="filterpy", progress=True)
     kinds = [c[0] for c in calls]
     assert kinds == ["total"] + ["update"] * 12 + ["close"] and calls[0][1] == 12

@@ -39,10 +39,11 @@ def test_too_many_runs_are_refused_with_the_estimate(capsys, runs):
 
 
 def test_the_estimate_grows_with_the_runs_and_names_the_argument():
-    small = estimate_truth_model_test(CoopParams(), 1000, filter="ekf", workers=2)
-    big = estimate_truth_model_test(CoopParams(), 2000, filter="ekf", workers=2)
-    # the per-run arrays kept: NEES, NIS, 6 errors, 6 two-sigma bounds per step, float64
-    assert small.fits and big.fits and big.peak_bytes - small.peak_bytes == pytest.approx(1000 * 1001 * 14 * 8)
+    small = estimate_truth_model_test(CoopParams(), 500, filter="ekf", workers=2)
+    big = estimate_truth_model_test(CoopParams(), 1000, filter="ekf", workers=2)
+    # the per-run arrays kept: NEES, NIS, 6 errors, 6 two-sigma bounds per step, float64 (same chunks in flight)
+    assert small.in_flight == big.in_flight == 2
+    assert small.fits and big.fits and big.peak_bytes - small.peak_bytes == pytest.approx(500 * 1001 * 14 * 8)
     with pytest.raises(ValueError, match=r"^n_runs: 4000 realizations"):
         estimate_truth_model_test(CoopParams(), 4000, filter="lkf")
     assert 1500 < _largest_accepted("lkf") < 4000
@@ -53,7 +54,8 @@ def test_the_estimate_grows_with_the_runs_and_names_the_argument():
 def test_estimate_bounds_the_peak_rss_of_a_child_process(filter, runs):
     """``coop --runs N`` in a child process on two threads, at the largest N the estimate accepts (LKF)
     and for the UKF's sigma points: the child's own high-water mark (VmHWM) stays under the estimate,
-    which is not loose either (at least 60 % of it is used)."""
+    which is not loose either (at least half of it is used: with chunks on two threads the estimate also counts
+    the end's statistics on top of the chunks, since memory freed by a worker thread stays with its allocator)."""
     runs = _largest_accepted(filter) if runs is None else runs
     est = estimate_truth_model_test(CoopParams(), runs, filter=filter, workers=2)
     code = ("import sys; from kfcal_helpers.cli import main; "
@@ -66,7 +68,7 @@ def test_estimate_bounds_the_peak_rss_of_a_child_process(filter, runs):
     assert r.returncode == 0, r.stderr
     peak = int(r.stderr.split()[-1])
     assert f'"n_runs": {runs}' in r.stdout
-    assert 0.6 * est.peak_bytes < peak <= est.peak_bytes <= MEMORY_LIMIT, (peak / 1e6, est.peak_bytes / 1e6)
+    assert 0.5 * est.peak_bytes < peak <= est.peak_bytes <= MEMORY_LIMIT, (peak / 1e6, est.peak_bytes / 1e6)
 
 
 def test_a_run_too_long_for_memory_names_the_params():

@@ -22,7 +22,8 @@ from kfcal_helpers.coop import CoopParams, simulate
 from kfcal_helpers.coop import exercises as coop
 from kfcal_helpers.exercises._core import GENERIC_HINT, ROUNDED_HINT, Feedback
 
-HINTS = {ex: e.hints for ex, e in coop.EXERCISES.items() if not ex.startswith("18.")}
+# 18.x: tests/test_coop_demos.py; 08.3 (a function answer): tests/test_exercises_coop_functions.py
+HINTS = {ex: e.hints for ex, e in coop.EXERCISES.items() if not ex.startswith("18.") and ex != "08.3"}
 P = CoopParams()
 VG, PHI, VA, WA = P.u0
 
@@ -442,7 +443,8 @@ def _assert_one_line(fb, exercise):
 
 def test_all_checks_exported():
     checks = {name for name in coop.__all__ if name.startswith("check_")}
-    assert checks == {c.__name__ for c, _ in CHECKS.values()} | {"check_subset_nis_bounds", "check_lost_directions"}
+    assert checks == {c.__name__ for c, _ in CHECKS.values()} | {"check_subset_nis_bounds", "check_lost_directions",
+                                                                "check_measure_function"}
     assert set(HINTS) == set(CHECKS)
     assert all(ex.id == key for key, ex in coop.EXERCISES.items())
 

@@ -5,15 +5,20 @@ session turns RuntimeWarnings from kfcal_helpers into errors)."""
 
 import numpy as np
 import pytest
+import scipy.sparse
 from scipy.io import savemat
 
 from kfcal_helpers.calibration import (CalibrationParams, covariance_sequence, outage_mask, parse_outage,
                                        run_monte_carlo, simulate)
 from kfcal_helpers.calibration.error_model import phi_power
 from kfcal_helpers.consistency import chi2_bounds, inside_fraction, nees, nis
-from kfcal_helpers.coop import CoopParams, MeasurementModel, load_log, truth_model_test, write_log_csv, write_log_mat
+from kfcal_helpers.coop import (CoopParams, MeasurementModel, fit_q_scale, load_log, run_filter, truth_model_test,
+                                write_log_csv, write_log_mat)
+from kfcal_helpers.coop.filters import log_summary
 from kfcal_helpers.coop import simulate as coop_simulate
-from kfcal_helpers.coop.model import dynamics, jacobian_C, measure, step, wrap_state
+from kfcal_helpers.coop.model import MAX_STEPS, dynamics, jacobian_C, measure, step, wrap_state
+
+import log_files as lf
 
 P = CalibrationParams()
 X0 = CoopParams().x0
@@ -105,7 +110,7 @@ BAD = [
     ("nis singular batch", lambda t, lg: nis(np.ones((4, 2)), np.ones((4, 2, 2))), r"cov must be non-singular"),
     ("nees nan", lambda t, lg: nees(np.array([np.nan, 0, 0]), np.eye(3)), r"finite"),
     ("nees shapes", lambda t, lg: nees(np.ones(3), np.eye(2)), r"err must have shape"),
-    ("chi2_bounds alpha", lambda t, lg: chi2_bounds(2, 10, alpha=1.5), r"alpha must be a number in \(0, 1\)"),
+    ("chi2_bounds alpha", lambda t, lg: chi2_bounds(2, 10, alpha=1.5), r"alpha must be a number in \[1e-14, 1\)"),
     ("chi2_bounds dim", lambda t, lg: chi2_bounds(0.5, 10), r"dim must be an integer"),
     ("inside_fraction nan", lambda t, lg: inside_fraction([np.nan], 0, 1), r"values must hold"),
     # coop model
@@ -158,6 +163,150 @@ BAD = [
     ("write_log_mat a dir", lambda t, lg: write_log_mat(lg, t), r"file: .* is a directory"),
     ("write_log_mat None", lambda t, lg: write_log_mat(lg, None), r"file must be a file path"),
 ]
+
+
+# --- course-log reader and public API edges (log-api) ---
+def _fit(**kw):
+    return fit_q_scale("ekf", coop_simulate(CoopParams(duration=1.0), seed=1).log().y, (0.5, 1.0),
+                       CoopParams(duration=1.0), **kw)
+
+
+def _y(value, rows=5):
+    y = np.full((rows, 5), float(value))
+    y[0] = np.nan
+    return y
+
+
+def _long(name):
+    return "a" * 256 + name
+
+
+LOG_API_BAD = [
+    # special files and bombs as the log
+    ("log fifo ydata", lambda t, lg: load_log(lf.folder_with(t, "ydata", lf.fifo)),
+     r"path: .*ydata.csv is a FIFO \(named pipe\); a log is read from regular files only"),
+    ("log fifo mat", lambda t, lg: load_log(lf.fifo(t / "log.mat")), r"path: .*log.mat is a FIFO"),
+    ("log fifo Rtrue", lambda t, lg: load_log(lf.folder_with(t, "Rtrue", lf.fifo)), r"path: .*Rtrue.csv is a FIFO"),
+    ("log ydata link to /dev/zero", lambda t, lg: load_log(lf.folder_with(t, "ydata", lambda f: lf.link("/dev/zero", f))),
+     r"path: .*ydata.csv \(a link to /dev/zero\) is a character device"),
+    ("log mat link to /dev/zero", lambda t, lg: load_log(lf.link("/dev/zero", t / "log.mat")),
+     r"path: .*log.mat \(a link to /dev/zero\) is a character device"),
+    ("log Qtrue link to /dev/null", lambda t, lg: load_log(lf.folder_with(t, "Qtrue", lambda f: lf.link("/dev/null", f))),
+     r"path: .*Qtrue.csv \(a link to /dev/null\) is a character device"),
+    ("log link to a link to a FIFO", lambda t, lg: load_log(lf.folder_with(
+        t, "tvec", lambda f: lf.link(lf.link(lf.fifo(t / "pipe"), t / "hop"), f))), r"path: .*tvec.csv .* is a FIFO"),
+    ("log socket ydata", lambda t, lg: load_log(lf.folder_with(t, "ydata", lf.unix_socket)),
+     r"path: .*ydata.csv is a socket"),
+    ("log mat bomb", lambda t, lg: load_log(lf.mat_bomb(t / "bomb.mat")),
+     r"ydata: 20000000 steps, more than the \d+ allowed: .* about 41750 MB .* 500 MB memory limit"),
+    ("log mat too long", lambda t, lg: load_log(lf.long_mat(t)), r"ydata: 168270 steps, more than the 168269 allowed"),
+    ("log mat long tvec", lambda t, lg: load_log(_mat(t, tvec=np.zeros((1, 10**6)))), r"tvec: 1000000 steps"),
+    ("log mat sparse Qtrue", lambda t, lg: load_log(_mat(t, Qtrue=scipy.sparse.eye(6, format="csc"))),
+     r"Qtrue must be a numeric matrix, got a sparse matrix"),
+    ("log csv too long", lambda t, lg: load_log(lf.long_log(t)), r"ydata: 168270 steps, more than the 168269 allowed"),
+    ("log csv sparse 100 MB", lambda t, lg: load_log(lf.folder_with(t, "ydata", lf.sparse_file)),
+     r"ydata: .*ydata.csv is larger than the 27.0 MB a log of at most 168269 steps needs"),
+    ("log csv 1 MB Qtrue", lambda t, lg: load_log(lf.folder_with(t, "Qtrue", lambda f: f.write_text("1.0\n" * 300000))),
+     r"Qtrue: .*Qtrue.csv is larger than the 0.1 MB"),
+    ("log sparse mat", lambda t, lg: load_log(lf.sparse_file(t / "log.mat", 200_000_000)), r"path: .*log.mat is larger than"),
+    ("coop params dt 5e-324", lambda t, lg: CoopParams(dt=5e-324), r"duration / dt must be at most 1e\+09 steps, got 100 s / 4.94066e-324 s = inf steps"),
+    ("coop params duration 1e300", lambda t, lg: CoopParams(duration=1e300), r"duration / dt must be at most 1e\+09 steps, got 1e\+300 s"),
+    ("run_filter too many rows", lambda t, lg: run_filter("ekf", _y(1.0, MAX_STEPS + 1)), r"y: 168270 steps"),
+    # timestamps
+    ("log epoch step below the float spacing", lambda t, lg: load_log(lf.retimed_log(t, lf.EPOCH + 1e-4 * np.arange(11))),
+     r"tvec: the step 0.0001 s is too small for times near 1.7e\+09 s \(their float spacing is 2.38e-07 s\)"),
+    ("log epoch jitter", lambda t, lg: load_log(lf.retimed_log(t, lf.EPOCH + 0.1 * np.arange(11) + np.r_[0, 0, 0.01, [0] * 8])),
+     r"tvec must be increasing with a constant step \(a step differs from the mean step 0.1 s by 0.01 s\)"),
+    # significance levels
+    ("mc alpha 1e-300", lambda t, lg: run_monte_carlo(P, 2, alpha=1e-300), r"alpha must be a number in \[1e-06, 1\)"),
+    ("mc alpha 1e-12", lambda t, lg: run_monte_carlo(P, 2, alpha=1e-12), r"alpha must be a number in \[1e-06, 1\)"),
+    ("coop mc alpha 1e-300", lambda t, lg: truth_model_test(CoopParams(duration=1.0), 2, alpha=1e-300),
+     r"alpha must be a number in \[1e-06, 1\)"),
+    ("coop mc alpha 5e-324", lambda t, lg: truth_model_test(CoopParams(duration=1.0), 2, alpha=5e-324),
+     r"alpha must be a number in \[1e-06"),
+    ("chi2_bounds alpha 1e-300", lambda t, lg: chi2_bounds(2, 10, alpha=1e-300), r"alpha must be a number in \[1e-14, 1\)"),
+    ("log_summary alpha 1e-300", lambda t, lg: log_summary(run_filter("ekf", lg.y), alpha=1e-300), r"alpha must be a number in"),
+    ("fit_q_scale alpha 1e-300", lambda t, lg: _fit(alpha=1e-300), r"alpha must be a number in"),
+    # measurements that overflow the filter
+    ("run_filter y 1e300", lambda t, lg: run_filter("ekf", _y(1e300)), r"y values must be at most 1e\+06 in magnitude"),
+    ("run_filter y -1e7 lkf", lambda t, lg: run_filter("lkf", _y(-1e7)), r"y values must be at most 1e\+06"),
+    ("run_filter y 1e200 ukf", lambda t, lg: run_filter("ukf", _y(1e200)), r"y values must be at most 1e\+06"),
+    ("fit_q_scale y 1e300", lambda t, lg: fit_q_scale("ekf", _y(1e300), (1.0,)), r"y values must be at most"),
+    # unknown keywords
+    ("run_filter unknown keyword", lambda t, lg: run_filter("ekf", lg.y, bogus=1),
+     r"bogus is not a filter setting; the settings are R, measurements, Q, x0, P0, points, wrap_innovations"),
+    ("run_filter misspelt keyword", lambda t, lg: run_filter("lkf", lg.y, q=np.eye(6)), r"q is not a filter setting"),
+    ("truth_model_test unknown keyword", lambda t, lg: truth_model_test(CoopParams(duration=1.0), 2, Qscale=2.0),
+     r"Qscale is not a filter setting"),
+    ("fit_q_scale unknown keyword", lambda t, lg: _fit(every=2), r"every is not a filter setting"),
+    # names too long for the file system
+    ("write_log_csv 256-char name", lambda t, lg: write_log_csv(lg, t / _long("")), r"folder: cannot write into"),
+    ("write_log_csv under a 256-char name", lambda t, lg: write_log_csv(lg, t / _long("") / "x"), r"folder: cannot write"),
+    ("write_log_mat 256-char name", lambda t, lg: write_log_mat(lg, t / _long(".mat")), r"file: cannot write"),
+    ("load_log 256-char name", lambda t, lg: load_log(t / _long(".mat")), r"path: cannot read"),
+]
+BAD += LOG_API_BAD
+
+
+@pytest.mark.parametrize("times", [lf.EPOCH + 0.1 * np.arange(21), -lf.EPOCH + 0.1 * np.arange(21),
+                                   1e3 * lf.EPOCH + 100.1 * np.arange(21), 6e5 + 0.1 * np.arange(21)],
+                         ids=["epoch s", "negative epoch s", "epoch ms", "GPS seconds of week"])
+def test_log_with_rounded_timestamps_is_accepted(times, tmp_path):
+    """Times far from 0 carry float rounding in their steps: a constant step is judged against the float
+    spacing of the largest |t|; dt is the mean step, and the filters run on the log."""
+    lg = load_log(lf.retimed_log(tmp_path, times))
+    step = (times[-1] - times[0]) / (times.size - 1)
+    assert lg.dt == pytest.approx(step, rel=1e-12)
+    assert np.array_equal(lg.t, times)
+    params = lg.params()
+    assert params.n_samples == times.size and params.dt == pytest.approx(step, rel=1e-12)
+    assert np.isfinite(run_filter("ekf", lg.y, params).x).all()
+
+
+def test_mat_bomb_is_refused_unread(tmp_path):
+    """The 780 kB compressed .mat that expands to 5 x 2e7 doubles (800 MB) is refused from its header:
+    the reader's peak allocation stays under 10 MB (tracemalloc; numpy reports its buffers)."""
+    import tracemalloc
+
+    path = lf.mat_bomb(tmp_path / "bomb.mat")
+    assert path.stat().st_size < 1_000_000
+    tracemalloc.start()
+    try:
+        with pytest.raises(ValueError, match=r"ydata: 20000000 steps"):
+            load_log(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 10e6, f"peak {peak / 1e6:.0f} MB"
+
+
+def test_log_at_the_step_limit_is_accepted(tmp_path):
+    """MAX_STEPS steps load (one more is refused, in the table above); the estimate at the limit is
+    within the 500 MB memory limit."""
+    from kfcal_helpers.coop.model import MAX_STEPS, run_bytes
+    from kfcal_helpers.montecarlo import MEMORY_LIMIT
+
+    assert run_bytes(MAX_STEPS) <= MEMORY_LIMIT < run_bytes(MAX_STEPS + 1)
+    assert load_log(lf.long_log(tmp_path, MAX_STEPS)).n_samples == MAX_STEPS
+
+
+def test_significance_limits_keep_every_band_finite():
+    """The smallest accepted alpha, Bonferroni-split over more entries than fit in memory, still gives
+    finite chi-square and t bands; the smallest band level gives finite quantiles."""
+    from scipy import stats
+
+    from kfcal_helpers.validation import MIN_ALPHA, MIN_BAND_ALPHA, require_significance
+
+    assert require_significance("alpha", MIN_ALPHA) == MIN_ALPHA
+    split = MIN_ALPHA / (500e6 / 8)  # more entries than an accepted run keeps
+    assert split >= MIN_BAND_ALPHA
+    for dim, n in ((1, 2), (6, 10**4), (5, 10**6)):
+        assert np.all(np.isfinite(chi2_bounds(dim, n, MIN_BAND_ALPHA)))
+        assert np.all(np.isfinite(chi2_bounds(dim, n, split)))
+    assert np.isfinite(stats.t.ppf(1 - MIN_BAND_ALPHA / 2, 1))
+    mc = run_monte_carlo(P, 3, seed=1, alpha=MIN_ALPHA)
+    for check in mc.checks().values():
+        assert np.all(np.isfinite(check.sim_upper)) and np.all(np.isfinite(check.upper)), check.name
 
 
 @pytest.mark.parametrize("call, match", [b[1:] for b in BAD], ids=[b[0] for b in BAD])

@@ -417,7 +417,7 @@ def _complete_png(path: Path) -> bool:
 def test_ctrl_c_one_line_exit_130(tmp_path):
     """SIGINT while working (calibrate, coop, figures, side by side): exit 130, one stderr line, and
     only complete files in the output folder, no temporary left."""
-    commands = [["calibrate", "--runs", "300000"], ["coop", "--runs", "5000"], ["figures", str(tmp_path)]]
+    commands = [["calibrate", "--runs", "300000"], ["coop", "--runs", "2000", "--filter", "ukf"], ["figures", str(tmp_path)]]
     procs = [_proc(argv) for argv in commands]
     time.sleep(4.0)  # past the interpreter's start (the handler is set first thing in main)
     for p in procs:
@@ -474,7 +474,7 @@ def _wait_for_handler(p, signum, timeout=30.0) -> None:
 
 
 @posix_only
-@pytest.mark.parametrize("argv", [["calibrate", "--runs", "300000"], ["coop", "--runs", "5000"]],
+@pytest.mark.parametrize("argv", [["calibrate", "--runs", "300000"], ["coop", "--runs", "2000", "--filter", "ukf"]],
                          ids=["calibrate", "coop"])
 def test_sigterm_while_working_one_line_exit_143(argv):
     """SIGTERM during a Monte Carlo: exit 143 and one line, as for Ctrl-C (was: killed, status -15)."""
@@ -903,6 +903,19 @@ def test_peak_memory_of_the_largest_accepted_runs(args, tmp_path):
     assert r.returncode == 0, r.stderr
     peak = int(r.stderr.strip().splitlines()[-1]) * 1024  # VmHWM is in kB
     assert peak <= MEMORY_LIMIT, f"peak {peak / 1e6:.0f} MB"
+    # and the estimate the command line refused on bounds it (the table and the JSON show the 200 Hz
+    # check between fixes when it fits: its sums are counted then)
+    from kfcal_helpers.calibration.cli import output_bytes, plan_between_fixes
+    from kfcal_helpers.calibration.montecarlo import estimate_run
+
+    value = {args[k]: args[k + 1] for k in range(0, len(args) - 1, 2) if args[k].startswith("--")}
+    params = CalibrationParams(imu_rate=float(value.get("--imu-rate", 200)), gps_rate=float(value.get("--gps-rate", 5)),
+                               duration=float(value["--duration"]))
+    figures = "--figures" in args
+    between, _ = plan_between_fixes(params, int(value["--runs"]), "batch", figures)
+    estimate = estimate_run(params, int(value["--runs"]), between_fixes=between,
+                            extra_bytes=output_bytes(params, figures, between))[0]
+    assert peak <= estimate, f"peak {peak / 1e6:.0f} MB, estimate {estimate / 1e6:.0f} MB"
     # one step larger is refused, before the work
     i = args.index("--duration")
     bigger = list(args)
@@ -910,7 +923,9 @@ def test_peak_memory_of_the_largest_accepted_runs(args, tmp_path):
     with pytest.MonkeyPatch.context() as mp:  # the estimate refuses it, so no realization runs
         refused = _refusals(mp)
         assert main(["calibrate", *bigger]) == 2
-    assert refused == ["estimate_run"]
+    # refused by the estimate: asked with the 200 Hz sums between fixes (when samples lie between fixes),
+    # then without them
+    assert refused == ["estimate_run"] * (2 if params.n_imu > params.n_gps else 1)
 
 
 def test_estimate_bounds_chunks_and_refuses():
@@ -929,3 +944,71 @@ def test_estimate_bounds_chunks_and_refuses():
         estimate_run(CalibrationParams(), 10**9)
     with pytest.raises(ValueError, match=r"params: one realization .* about \d+ MB"):
         estimate_run(CalibrationParams(gps_rate=200.0), 2)
+
+
+# --- course-log reader (log-api) ---
+import log_files as lf  # noqa: E402
+
+from kfcal_helpers.coop import cli as coop_cli  # noqa: E402
+
+# (id, build(tmp) -> the --log argument, extra options, words the one stderr line must contain)
+LOG_READER_BAD = [
+    ("fifo ydata", lambda t: lf.folder_with(t, "ydata", lf.fifo), [], ["--log", "ydata.csv is a FIFO", "regular files"]),
+    ("fifo mat", lambda t: lf.fifo(t / "log.mat"), [], ["--log", "log.mat is a FIFO"]),
+    ("ydata link to /dev/zero", lambda t: lf.folder_with(t, "ydata", lambda f: lf.link("/dev/zero", f)), [],
+     ["--log", "a link to /dev/zero", "character device"]),
+    ("mat link to /dev/zero", lambda t: lf.link("/dev/zero", t / "log.mat"), [], ["--log", "character device"]),
+    ("tvec link to /dev/urandom", lambda t: lf.folder_with(t, "tvec", lambda f: lf.link("/dev/urandom", f)), [],
+     ["--log", "character device"]),
+    ("socket Qtrue", lambda t: lf.folder_with(t, "Qtrue", lf.unix_socket), [], ["--log", "Qtrue.csv is a socket"]),
+    ("mat bomb", lambda t: lf.mat_bomb(t / "bomb.mat"), [], ["ydata: 20000000 steps", "MB", "500 MB memory limit"]),
+    ("mat too long", lf.long_mat, [], ["ydata: 168270 steps", "more than the 168269 allowed"]),
+    ("csv too long", lf.long_log, ["--filter", "lkf"], ["ydata: 168270 steps", "MB"]),
+    ("csv too long, every 10", lf.long_log, ["--every", "10"], ["ydata: 168270 steps"]),
+    ("sparse 100 MB ydata", lambda t: lf.folder_with(t, "ydata", lf.sparse_file), [], ["ydata", "is larger than the"]),
+    ("sparse 200 MB mat", lambda t: lf.sparse_file(t / "log.mat", 200_000_000), [], ["--log", "is larger than the"]),
+    ("epoch step below float spacing", lambda t: lf.retimed_log(t, lf.EPOCH + 1e-4 * np.arange(11)), [],
+     ["tvec", "too small for times near 1.7e+09 s"]),
+    ("256-char log name", lambda t: t / ("a" * 256), [], ["--log", "cannot read"]),
+    ("alpha 1e-300", lf.log_folder, ["--alpha", "1e-300"], ["--alpha", "[1e-06, 0.5]"]),
+    ("alpha 1e-7 runs", None, ["--runs", "2", "--alpha", "1e-7"], ["--alpha", "[1e-06, 0.5]"]),
+]
+
+
+@pytest.mark.parametrize("build, extra, words", [r[1:] for r in LOG_READER_BAD], ids=[r[0] for r in LOG_READER_BAD])
+def test_course_log_reader_one_line_exit_2(build, extra, words, tmp_path, capsys, monkeypatch):
+    """Special files, bombs, logs too long for memory, timestamps and significance levels: one line naming
+    what is wrong with the log (or the option), exit 2, before any filter runs."""
+    def no_filter(*a, **k):
+        raise AssertionError("a filter started before the log was checked")
+
+    monkeypatch.setattr(coop_cli, "run_filter", no_filter)
+    monkeypatch.setattr(coop_cli, "truth_model_test", no_filter)
+    argv = ["coop", *(["--log", str(build(tmp_path))] if build is not None else []), *extra]
+    code, out, err = _run(argv, capsys)
+    assert code == 2 and out == "", err
+    _one_error_line(err, "coop")
+    for word in words:
+        assert word in err, (word, err)
+    assert "realizations" not in err
+
+
+@pytest.mark.parametrize("times", [lf.EPOCH + 0.1 * np.arange(21), 1e3 * lf.EPOCH + 100.1 * np.arange(21)],
+                         ids=["epoch s", "epoch ms"])
+def test_course_log_with_epoch_times_runs(times, tmp_path, capsys):
+    """A log timed in Unix-epoch seconds (or ms): its float-rounded steps are a constant step."""
+    code, out, err = _run(["coop", "--log", str(lf.retimed_log(tmp_path, times)), "--json"], capsys)
+    assert code == 0 and err == "", err
+    assert json.loads(out)["steps"] == times.size
+
+
+def test_memory_error_on_a_log_blames_the_log(tmp_path, capsys, monkeypatch):
+    """Out of memory while filtering a log: the advice is about the log, not about realizations."""
+    def no_memory(*a, **k):
+        raise MemoryError
+
+    monkeypatch.setattr(coop_cli, "run_filter", no_memory)
+    code, out, err = _run(["coop", "--log", str(lf.log_folder(tmp_path))], capsys)
+    assert code == 2 and out == ""
+    _one_error_line(err, "coop")
+    assert "not enough memory" in err and "shorter log" in err and "realizations" not in err

@@ -47,6 +47,69 @@ def _toy_row(mistake, n_runs=None, params=None, alpha=0.05):
     return MistakeRow("toy", mistake, TOY.mistakes[mistake], {"bias": check}, {"n_runs": n_runs, "alpha": alpha})
 
 
+class ToyResult:
+    """The toy Monte Carlo's result: the interface every problem's result offers
+    (``consistency.MonteCarloSummary``), its bands from ``kfcal_helpers.consistency``."""
+
+    def __init__(self, n_runs, alpha, seconds, mean, var, nees, bias):
+        self.n_runs, self.alpha, self.filter, self.seconds = n_runs, alpha, "toy", seconds
+        self.mean, self.var, self.nees, self.bias = mean, var, nees, bias
+
+    def checks(self):
+        from kfcal_helpers.consistency import chi2_bounds, t_band, variance_band
+
+        N, a, out = self.n_runs, self.alpha, {}
+        for name, stat, expected, band in (
+                ("mean_error", self.mean, np.zeros(3), lambda level: (-t_band(np.sqrt(self.var), N, level),
+                                                                     t_band(np.sqrt(self.var), N, level))),
+                ("variance", self.var, np.ones(3), lambda level: variance_band(np.ones(3), N - 1, level)),
+                ("nees", np.array([self.nees]), np.array([3.0]),
+                 lambda level: tuple(np.array([b]) for b in chi2_bounds(3, N, level)))):
+            lo, hi = band(a)
+            slo, shi = band(a / 3 / stat.size)
+            out[name] = Check(name, f"toy {name}", stat, expected, lo, hi, slo, shi)
+        return out
+
+
+class ToyExperiment:
+    """A toy problem's Monte Carlo for the shared core: ``N(bias, I_3)`` errors of a 3-state estimate,
+    chunks of 64 realizations, running sums of the errors, their squares and their NEES."""
+
+    def __init__(self, bias=0.0, alpha=0.05):
+        self.bias, self.alpha = bias, alpha
+
+    def chunk_size(self):
+        return 64
+
+    def fixed_bytes(self, n_runs):
+        return 1e6
+
+    def chunk_bytes(self, size):
+        return 200.0 * size
+
+    def final_bytes(self, n_runs):
+        return 1e3
+
+    def seconds(self, n_runs):
+        return 1e-6 * n_runs
+
+    def run_chunk(self, size, rng, chunk):
+        e = self.bias + rng.standard_normal((size, 3))
+        chunk.tick(size)
+        return size, e.sum(0), (e**2).sum(0), (e**2).sum()
+
+    def empty(self):
+        return [0, np.zeros(3), np.zeros(3), 0.0]
+
+    def add(self, total, part):
+        return [t + p for t, p in zip(total, part)]
+
+    def result(self, total, n_runs, seconds):
+        n, s, ss, nees = total
+        mean = s / n
+        return ToyResult(n, self.alpha, seconds, mean, (ss - n * mean**2) / (n - 1), nees / n, self.bias)
+
+
 TOY = Problem(name="toy", title="a toy problem", add_cli=_toy_cli,
               figures=(LectureFigure("toy_line", "toy: a straight line", _toy_line),),
               figure_data=lambda: {"slope": 2.0},
@@ -94,6 +157,32 @@ def test_the_toy_mistakes_are_rows_of_the_table(with_toy):
     assert text.splitlines()[0].split() == ["mistake", "bias"]
     assert "FAIL 1.5" in text and "pass 0" in text
     assert format_checks(rows["toy_wrong"].checks).splitlines()[-1].split() == ["bias", "0.000", "1.50", "FAIL"]
+
+
+def test_the_toy_monte_carlo_runs_through_the_shared_core():
+    """A third problem's Monte Carlo is an Experiment for kfcal_helpers.montecarlo.run: seeds, threads,
+    chunk order and the estimate come from the core, its result offers the shared interface, its bands
+    come from consistency, and format_checks prints it."""
+    from kfcal_helpers import montecarlo as core
+    from kfcal_helpers.consistency import MonteCarloSummary
+
+    assert isinstance(ToyExperiment(), core.Experiment)
+    runs = [core.run(ToyExperiment(), 1000, 3, workers=w) for w in (1, 2)]
+    mc = runs[0]
+    assert isinstance(mc, MonteCarloSummary) and mc.n_runs == 1000 and mc.filter == "toy" and mc.seconds >= 0
+    assert np.array_equal(mc.mean, runs[1].mean) and mc.nees == runs[1].nees  # bit for bit on 1 and 2 threads
+    checks = mc.checks()
+    assert all(c.passed for c in checks.values()), format_checks(mc)
+    lines = format_checks(mc).splitlines()
+    assert [line.split()[0] for line in lines[2:]] == ["mean_error", "variance", "nees"]
+    assert all(line.split()[-1] == "pass" for line in lines[2:])
+    # a biased estimate fails its mean and NEES checks, not its variance check
+    biased = core.run(ToyExperiment(bias=0.3), 1000, 3).checks()
+    assert not biased["mean_error"].passed and not biased["nees"].passed and biased["variance"].passed
+    # memory does not grow with the runs (sums only); the core refuses a run that would take too long
+    assert core.estimate(ToyExperiment(), 10**9).peak_bytes == core.estimate(ToyExperiment(), 10**3).peak_bytes
+    with pytest.raises(ValueError, match="^n_runs: 10000000000 realizations would take about 2.78 h"):
+        core.estimate(ToyExperiment(), 10**10)
 
 
 def test_names_must_be_unique_over_problems(monkeypatch):

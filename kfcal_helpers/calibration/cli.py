@@ -8,13 +8,13 @@ from pathlib import Path
 
 from ..consistency import format_checks
 from ..validation import MAX_SEED, cli_float, cli_int, require_int
-from .montecarlo import CHECK_NAMES, FILTERS, estimate_run, run_monte_carlo
+from .montecarlo import FILTERS, MEMORY_LIMIT, estimate_run, run_monte_carlo
 from .outages import outage_mask, parse_outage
 from .params import CalibrationParams
 from .simulation import TRUTH_MODELS
 
-__all__ = ["add_parser", "run", "result_to_dict", "write_figures", "figure_case", "FIGURE_FILES", "COLUMNS_LEGEND",
-           "MISMATCH_NOTE"]
+__all__ = ["add_parser", "run", "result_to_dict", "output_bytes", "plan_between_fixes", "write_figures", "figure_case",
+           "FIGURE_FILES", "COLUMNS_LEGEND", "MISMATCH_NOTE"]
 
 #: the lines under the check table that say what its columns mean
 COLUMNS_LEGEND = (
@@ -29,6 +29,12 @@ MISMATCH_NOTE = (
 #: bytes the --figures drawing needs on top of the Monte Carlo's result: matplotlib, and per GPS fix
 #: squared for the check panels (measured, rounded up)
 FIGURES_BYTES, FIGURES_BYTES_PER_FIX2 = 60e6, 80.0
+#: bytes the table or the JSON needs on top of the Monte Carlo's last phase (measured with tracemalloc,
+#: rounded up).  Both compute the checks again once the run's own computation of them is freed (about
+#: 200 bytes per GPS fix squared, less than the run's last phase counts), and keep the between-fixes
+#: check (its entries, bands and temporaries: about 250 bytes per IMU sample, of which the run's last
+#: phase frees about 100); then the JSON text (small)
+OUTPUT_BYTES, OUTPUT_BYTES_PER_SAMPLE = 2e6, 250.0
 #: CalibrationParams field -> its option, for error messages
 _FLAGS = {"omega": "--omega", "imu_rate": "--imu-rate", "gps_rate": "--gps-rate", "duration": "--duration"}
 
@@ -64,13 +70,16 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
-def result_to_dict(mc, outages=()) -> dict:
+def result_to_dict(mc, outages=(), checks=None, skipped=None) -> dict:
     """The JSON summary of a MonteCarloResult.
 
     outages : the GPS outage windows ``(start, end)`` in seconds the run used (key ``outages``,
     a list of ``[start, end]``, empty without outages).
+    checks : the checks to write (default ``mc.all_checks()``: the seven, and ``between_fixes`` when
+    the run summed the 200 Hz error), the same the table prints.
+    skipped : ``{check: reason}`` of checks not run (key ``skipped_checks``, written when not empty).
     """
-    checks = mc.checks()
+    checks = mc.all_checks() if checks is None else checks
     out = {
         "n_runs": mc.n_runs,
         "filter": mc.filter,
@@ -82,16 +91,44 @@ def result_to_dict(mc, outages=()) -> dict:
         "ensemble_sigma_final": mc.ensemble_sigma_final.tolist(),
         "checks": {},
     }
-    for name in CHECK_NAMES:
-        c = checks[name]
+    for name, c in checks.items():
         entry = {"inside_fraction": c.inside_fraction, "worst": c.worst, "passed": c.passed}
         if name in ("nees", "nis"):
             entry["bounds"] = list(mc.nees_bounds if name == "nees" else mc.nis_bounds)
         out["checks"][name] = entry
-    if mc.between is not None:  # the 200 Hz error between fixes, a further check
-        c = mc.between_fixes_check()
-        out["checks"]["between_fixes"] = {"inside_fraction": c.inside_fraction, "worst": c.worst, "passed": c.passed}
+    if skipped:
+        out["skipped_checks"] = dict(skipped)
     return out
+
+
+def output_bytes(params: CalibrationParams, figures: bool = False, between_fixes: bool = False) -> float:
+    """Bytes the command line's output (table or JSON, and ``--figures``) needs while the Monte Carlo's
+    result is alive: counted by the estimate before the run (:data:`OUTPUT_BYTES`, :data:`FIGURES_BYTES`)."""
+    out = OUTPUT_BYTES + (OUTPUT_BYTES_PER_SAMPLE * params.n_imu if between_fixes else 0.0)
+    if figures:
+        out += FIGURES_BYTES + FIGURES_BYTES_PER_FIX2 * params.n_gps**2
+    return out
+
+
+def plan_between_fixes(params: CalibrationParams, n_runs: int, filter: str, figures: bool = False,
+                       runs_name: str = "--runs", params_name: str = "--duration, --imu-rate, --gps-rate"):
+    """``(between, skipped)``: whether the run also checks the 200 Hz error between fixes, and why not.
+
+    It does when IMU samples lie between the fixes and the run with its 200 Hz sums fits in
+    :data:`MEMORY_LIMIT`; otherwise ``skipped`` says why (``{"between_fixes": reason}``).  Raises the
+    estimate's ValueError when even the run without them does not fit, or takes too long."""
+    names = {"runs_name": runs_name, "params_name": params_name}
+    if params.n_imu <= params.n_gps:
+        estimate_run(params, n_runs, filter, extra_bytes=output_bytes(params, figures), **names)
+        return False, {"between_fixes": "every IMU sample is a GPS fix (GPS rate = IMU rate): nothing between fixes"}
+    try:
+        estimate_run(params, n_runs, filter, extra_bytes=output_bytes(params, figures, True), between_fixes=True,
+                     **names)
+        return True, {}
+    except ValueError:
+        estimate_run(params, n_runs, filter, extra_bytes=output_bytes(params, figures), **names)
+        return False, {"between_fixes": f"not run: its 200 Hz sums over {params.n_imu} IMU samples would take the "
+                                        f"run over the {MEMORY_LIMIT / 1e6:.0f} MB allowed"}
 
 
 #: file stem of each ``--figures`` file -> the lecture figure (:data:`.figures.FIGURES`) it draws
@@ -160,22 +197,24 @@ def run(args) -> int:
         check_targets(check_directory(args.figures, "--figures"), FIGURE_FILES, argname="--figures")
         use_agg_backend()
     params = _params(args)
-    between = bool(args.json) and params.n_imu > params.n_gps  # the 200 Hz check, when samples lie between fixes
-    # before anything of the scenario's size is allocated: refuse what cannot fit or would take hours
-    estimate_run(params, args.runs, args.filter, runs_name="--runs",
-                 params_name="--duration, --imu-rate, --gps-rate" + (", --figures" if args.figures else ""),
-                 extra_bytes=FIGURES_BYTES + FIGURES_BYTES_PER_FIX2 * params.n_gps**2 if args.figures else 0.0,
-                 between_fixes=between)
+    # before anything of the scenario's size is allocated: refuse what cannot fit or would take hours, and
+    # check the 200 Hz error between fixes when it fits (the same checks in the table and in the JSON)
+    between, skipped = plan_between_fixes(
+        params, args.runs, args.filter, figures=args.figures is not None,
+        params_name="--duration, --imu-rate, --gps-rate" + (", --figures" if args.figures else ""))
     windows = [parse_outage(text, "--outage") for text in args.outage]
     missing = outage_mask(params, windows, name="--outage") if windows else None
     if missing is not None and (~missing).sum() < 2:
         raise ValueError(f"--outage: the outages leave {int((~missing).sum())} of the {params.n_gps} GPS fixes; "
                          f"at least 2 must remain")
     mc = run_monte_carlo(params, args.runs, args.seed, filter=args.filter, truth=args.truth, progress=None,
-                         missing_fixes=missing, between_fixes=between)
+                         missing_fixes=missing, between_fixes=between,
+                         extra_bytes=output_bytes(params, args.figures is not None, between))
     written = write_figures(mc, args.figures, seed=args.seed) if args.figures else []
+    checks = mc.all_checks()
     if args.json:
-        d = result_to_dict(mc, windows)
+        d = result_to_dict(mc, windows, checks, skipped)
+        del checks
         if written:
             d["figures"] = [str(p) for p in written]
         print(dumps_json(d))
@@ -184,9 +223,11 @@ def run(args) -> int:
     print(f"{mc.n_runs} realizations, filter {mc.filter}, truth {mc.truth}, {mc.seconds:.2f} s")
     print(f"sigma at the last fix from P:        p {s[0]:.4g} m, v {s[1]:.4g} m/s, b {s[2]:.4g} m/s^2")
     print(f"sigma at the last fix from ensemble: p {es[0]:.4g} m, v {es[1]:.4g} m/s, b {es[2]:.4g} m/s^2")
-    print(format_checks(mc))
+    print(format_checks(checks))
+    for name, reason in skipped.items():
+        print(f"{name}: {reason}")
     print(COLUMNS_LEGEND)
-    if mc.truth == "analytic" and not all(c.passed for c in mc.checks().values()):
+    if mc.truth == "analytic" and not all(c.passed for c in checks.values()):
         print(MISMATCH_NOTE)
     for p in written:
         print(f"wrote {path_text(p)}")

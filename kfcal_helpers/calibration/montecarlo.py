@@ -1,36 +1,41 @@
 """Monte Carlo validation of the calibration filter (seven checks at the GPS fixes, and one between them).
 
-Realizations are simulated in chunks of at most :data:`CHUNK_SIZE` (a chunk's draws are
-dropped once the chunk is filtered), and only sums over realizations are kept, so memory does not
-grow with the number of runs.  The chunks run on a small thread pool (``workers``, default
-``min(2, os.cpu_count())``); chunk ``c`` draws from its own random stream
-(``numpy.random.SeedSequence(seed).spawn``, PCG64DXSM, :func:`chunk_generators`) and the partial sums are
-added in chunk order, so the result is the same, bit for bit, for any number of workers.  The chunk size follows the
-size of one realization (:func:`chunk_size`, a function of the parameters only, so results
-do not depend on the machine) and keeps the estimated peak memory of the process under
-:data:`MEMORY_LIMIT`; a run that cannot fit even one realization at a time, or whose
-estimated time exceeds :data:`MAX_SECONDS`, is refused with its estimate
-(:func:`estimate_run`), before any work starts.
+The run goes through the shared Monte Carlo core, :func:`kfcal_helpers.montecarlo.run`, with a
+:class:`CalibrationExperiment`: realizations are simulated in chunks of at most :data:`CHUNK_SIZE`
+(a chunk's draws are dropped once the chunk is filtered) and only sums over realizations are kept,
+so memory does not grow with the number of runs.  The core's policy applies: chunk ``c`` draws from
+its own random stream (``numpy.random.SeedSequence(seed).spawn``, PCG64DXSM, :func:`chunk_generators`),
+the chunks run on a small thread pool (``workers``, default
+:func:`kfcal_helpers.montecarlo.default_workers`: the environment variable ``KFCAL_WORKERS``, else
+``min(2, os.cpu_count())``) and the partial sums are added in chunk order, so the result is the same,
+bit for bit, for any number of workers.  The chunk size follows the size of one realization
+(:func:`chunk_size`, a function of the parameters only, so results do not depend on the machine); a
+run whose estimated peak memory exceeds :data:`MEMORY_LIMIT`, or whose estimated time exceeds
+:data:`MAX_SECONDS`, is refused with its estimate (:func:`estimate_run`), before any work starts.
 
 For realization ``l`` and fix ``i``: error ``e = dx - dx_hat`` (a posteriori),
 prior error ``e_bar = dx - dx_hat_prior``, residual ``r = dz - H dx_hat_prior``.
 The checks, each judged against its own sampling band at significance
-``alpha`` (z = ``norm.ppf(1 - alpha/2)``, 1.96 for alpha = 0.05):
+``alpha`` (the bands are those of :mod:`kfcal_helpers.consistency`; z = ``norm.ppf(1 - alpha/2)``,
+1.96 for alpha = 0.05):
 
-1. ``mean_error``: ensemble mean of ``e`` against ``+-t_{N-1}(1 - alpha/2) s/sqrt(N)`` (s: ensemble std).
+1. ``mean_error``: ensemble mean of ``e`` against ``+-t_{N-1}(1 - alpha/2) s/sqrt(N)`` (s: ensemble std;
+   ``consistency.t_band``).
 2. ``covariance``: ensemble covariance of ``e`` against the filter's ``P``; variances
-   against the chi-square interval ``P chi2_{N-1}(alpha/2, 1-alpha/2)/(N-1)``,
-   correlations against the filter's, with Fisher's ``tanh(atanh(rho_P) +- z/sqrt(N-3))``.
+   against the chi-square interval ``P chi2_{N-1}(alpha/2, 1-alpha/2)/(N-1)`` (``variance_band``),
+   correlations against the filter's, with Fisher's ``tanh(atanh(rho_P) +- z/sqrt(N-3))``
+   (``correlation_band``).
 3. ``orthogonality``: ``(1/N) sum (e - e_mean) dx_hat^T`` against
-   ``+-z sqrt(P_kk mean(dx_hat_l^2)/N)`` (the spread of a product of independent factors; slightly
-   conservative, as the exact spread has the centred ``mean((dx_hat_l - mean dx_hat)^2) <= mean(dx_hat_l^2)``).
+   ``+-z sqrt(P_kk mean(dx_hat_l^2)/N)`` (``normal_band``: the spread of a product of independent
+   factors; slightly conservative, as the exact spread has the centred
+   ``mean((dx_hat_l - mean dx_hat)^2) <= mean(dx_hat_l^2)``).
 4. ``residual_independence``: the correlation ``sum r_i,a r_m,b / sqrt(sum r_i,a^2 sum r_m,b^2)``
    for every pair of fixes ``i < m`` against ``+-q/sqrt(N - 1 + q^2)``, ``q = t_{N-1}(1 - alpha/2)``
-   (exact for independent zero-mean Gaussian residuals: the correlation is the cosine of the
-   angle between two vectors in R^N, and ``rho sqrt((N - 1)/(1 - rho^2))`` is Student-t with N - 1
-   degrees of freedom).
-5. ``residual_variance``: ``(1/N) sum r_i r_i^T`` diagonal against ``S_i chi2_N/N``.
-6. ``nees``: run-averaged ``e^T P^-1 e`` against ``chi2_{3N}/N`` bounds.
+   (``uncentred_correlation_band``: exact for independent zero-mean Gaussian residuals, the correlation
+   is the cosine of the angle between two vectors in R^N, and ``rho sqrt((N - 1)/(1 - rho^2))`` is
+   Student-t with N - 1 degrees of freedom).
+5. ``residual_variance``: ``(1/N) sum r_i r_i^T`` diagonal against ``S_i chi2_N/N`` (``variance_band``).
+6. ``nees``: run-averaged ``e^T P^-1 e`` against ``chi2_{3N}/N`` bounds (``chi2_bounds``).
 7. ``nis``: run-averaged ``r^T S^-1 r`` against ``chi2_{2N}/N`` bounds.
 
 ``inside_fraction`` is the share of entries (fix x component, or pair x component
@@ -44,54 +49,70 @@ Between fixes (``run_monte_carlo(..., between_fixes=True)``): the error at every
 its ensemble variance at every sample with the filter's ``P_kk(t_j)`` against the
 chi-square interval ``P_kk chi2_{N-1}(level/2, 1-level/2)/(N-1)`` (its own family of
 entries at ``alpha``: the seven checks above are not changed by it, and over all eight checks a
-consistent filter fails somewhere with probability at most ``2 alpha``).
+consistent filter fails somewhere with probability at most ``2 alpha``).  The error state is linear:
+within the GPS period that starts at fix ``i``,
+``e(t_i + k dt) = Phi_f^k e_i + (Phi^k - Phi_f^k) dx_i + l_k + d_k`` (``Phi_f`` the filter's model,
+``Phi`` the true one, ``l_k`` the IMU noise integrated since the fix, ``d_k`` the deterministic mismatch of
+the analytic truth), so the batch filter keeps, per period, sums of products of a few per-realization
+numbers with the running sums of the IMU noise (no (n, n_imu, 3) array is formed), and the moments at
+every sample follow at the end.
 """
 
 from __future__ import annotations
 
-import itertools
-import os
-import threading
 import time
-from collections import deque
-from concurrent.futures import ThreadPoolExecutor
-from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
-from ..consistency import Check, chi2_bounds
-from ..progress import progress_bar as _progress_bar
-from ..validation import require_choice, require_instance, require_int, require_mask, require_probability, require_seed
-from .engine import covariance_sequence, estimate_between_fixes, filter_estimates, filter_model
-from .error_model import ErrorStateModel
+from .. import montecarlo as core
+from ..consistency import (Check, chi2_bounds, correlation_band, normal_band, t_band, uncentred_correlation_band,
+                           variance_band)
+from ..validation import require_choice, require_instance, require_int, require_mask, require_seed, require_significance
+from .engine import between_fixes, covariance_sequence, filter_estimates, filter_model
+from .error_model import ErrorStateModel, error_state_model
 from .filters import run_filterpy
 from .params import CalibrationParams
-from .simulation import TRUTH_MODELS, draw_realizations, error_state_at_fixes, error_state_full
+from .simulation import (TRUTH_MODELS, draw_realizations, error_state_at_fixes, error_state_full,
+                         mean_error_state)
 
 __all__ = ["CHUNK_SIZE", "MEMORY_LIMIT", "MAX_SECONDS", "chunk_size", "chunk_sizes", "chunk_generators",
            "chunks_in_flight", "default_workers", "estimate_run", "FILTERS", "CHECK_NAMES", "Check",
-           "MonteCarloResult", "BetweenFixes", "run_monte_carlo"]
+           "MonteCarloResult", "BetweenFixes", "CalibrationExperiment", "run_monte_carlo"]
 
 CHUNK_SIZE = 500  #: most realizations simulated together (see chunk_size)
-MEMORY_LIMIT = 500e6  #: bytes, the estimated peak memory (resident) a run may need
-MAX_SECONDS = 3600.0  #: s, the longest estimated run accepted
-# Cost model, measured (tracemalloc, ru_maxrss, wall time) on the 2-core reference machine and
-# rounded up (tests/test_calibration_montecarlo.py checks it against tracemalloc):
-# * the interpreter with numpy and scipy, and per IMU sample what the whole run keeps (the filter's P);
-# * at the end, per GPS fix squared, the statistics of the checks (the pairwise residual statistics);
-# * while chunks run: the sums (per fix squared, and per sample with between_fixes), and per chunk in
-#   flight its realizations (per IMU sample and per fix of one realization; with between_fixes the
-#   200 Hz error state, its estimate and their products) and its partial sums;
+MEMORY_LIMIT = core.MEMORY_LIMIT  #: bytes, the estimated peak memory (resident) a run may need
+MAX_SECONDS = core.MAX_SECONDS  #: s, the longest estimated one-thread run accepted
+default_workers = core.default_workers  #: the core's: KFCAL_WORKERS, else min(2, os.cpu_count())
+
+# The chunk-size rule (fixed: it decides which realizations each chunk draws, so every quoted result
+# depends on it; bytes per realization of the first version of the 200 Hz sums, conservative today)
+_RULE_FIXED, _RULE_FIXED_PER_SAMPLE = 130e6, 100.0
+_RULE_SUMS_PER_FIX2, _RULE_SUMS_PER_SAMPLE = 40.0, 200.0
+_RULE_PER_SAMPLE, _RULE_PER_FIX = 16.0 + 80.0, 400.0
+_RULE_PARTIAL_PER_FIX2, _RULE_PARTIAL_PER_SAMPLE = 72.0, 100.0
+
+# Cost model of the estimate, measured (tracemalloc, VmHWM of a child, wall time) on the 2-core
+# reference machine and rounded up (tests/test_calibration_montecarlo.py and
+# tests/test_calibration_memory.py check it against tracemalloc and the child's peak):
+# * the interpreter with numpy and scipy; per IMU sample what the whole run keeps (the filter's P);
+# * the sums: per fix squared, and with between_fixes per IMU sample;
+# * per chunk in flight its realizations (per IMU sample and per fix of one realization; with
+#   between_fixes the running sums of the IMU noise, and for filterpy its 200 Hz estimates) and its
+#   partial sums;
+# * at the end, the statistics of the checks (per fix squared: the pairwise residual statistics; per
+#   IMU sample with between_fixes: the 200 Hz moments);
 # * seconds per IMU sample of one realization on one thread, and per fix squared.
 _BASE_BYTES = 130e6
 _FIXED_BYTES_PER_SAMPLE = 100.0
-_STATS_BYTES_PER_FIX2 = 340.0
-_SUMS_BYTES_PER_FIX2, _SUMS_BYTES_PER_SAMPLE = 40.0, 200.0
+_SUMS_BYTES_PER_FIX2 = 40.0
 _BYTES_PER_SAMPLE, _BYTES_PER_FIX = 16.0, 400.0
-_BETWEEN_BYTES_PER_SAMPLE = 80.0
-_PARTIAL_BYTES_PER_FIX2, _PARTIAL_BYTES_PER_SAMPLE = 72.0, 100.0
+_BETWEEN_BYTES_PER_SAMPLE = {"batch": 16.0, "filterpy": 80.0}
+_PARTIAL_BYTES_PER_FIX2 = 72.0
+_STATS_BYTES_PER_FIX2 = 260.0
+_STATS_BYTES_PER_SAMPLE, _STATS_BYTES_PER_BLOCK_SAMPLE, _BLOCK_SAMPLES = 400.0, 700.0, 65536
+_POWERS_BYTES_PER_STEP = 700.0
+_ROWS = 32  #: realizations whose 200 Hz running sums are formed at a time (between_fixes, batch filter)
 _SECONDS_PER_SAMPLE = {"batch": 1.5e-7, "filterpy": 6e-6}
 _SECONDS_PER_FIX2 = 3e-6
 FILTERS = ("batch", "filterpy")  #: the filter codes run_monte_carlo can run
@@ -109,8 +130,9 @@ class MonteCarloResult:
     xhat_sq_mean (n_gps, 3); residual_moment (n_gps, 2, n_gps, 2) = (1/N) sum r r^T (NaN at missing
     fixes); nees (n_gps,), nis (n_gps,) run averages (NaN at missing fixes for NIS);
     filter: "batch" or "filterpy"; seconds: wall time of simulation + filtering + statistics.
-    The interface shared with the coop problem: ``n_runs``, ``alpha``, ``checks()``
-    (printed by ``kfcal_helpers.consistency.format_checks``).
+    The interface shared by every problem (``kfcal_helpers.consistency.MonteCarloSummary``):
+    ``n_runs``, ``alpha``, ``filter``, ``seconds``, ``checks()`` (printed by
+    ``kfcal_helpers.consistency.format_checks``).
     """
 
     params: CalibrationParams
@@ -160,68 +182,59 @@ class MonteCarloResult:
         n = self.residual_moment.shape[0] * 2
         return self.residual_moment.reshape(n, n) / np.outer(d, d)
 
-    def bands(self, level: float) -> dict:
-        """``{check: (statistic, expected, lower, upper)}`` at per-entry significance ``level``."""
+    def band(self, name: str, level: float) -> tuple:
+        """``(statistic, expected, lower, upper)`` of the check ``name`` (one of :data:`CHECK_NAMES`)
+        at per-entry significance ``level``; the bands come from :mod:`kfcal_helpers.consistency`."""
+        require_choice("name", name, CHECK_NAMES)
         N = self.n_runs
-        out = {}
-        sd = np.sqrt(np.einsum("iaa->ia", self.e_cov))
-        half = stats.t.ppf(1 - level / 2, N - 1) * sd / np.sqrt(N)
-        out["mean_error"] = (self.e_mean, 0 * sd, -half, half)
-
-        z = stats.norm.ppf(1 - level / 2)
-        P = self.P_post
-        iu = np.triu_indices(3)
-        diag = iu[0] == iu[1]
-        Pkk = np.einsum("iaa->ia", P)
-        Pkl = P[:, iu[0], iu[1]]
-        # variances: exact chi-square interval; correlations: Fisher's z-transform
-        stat = self.e_cov[:, iu[0], iu[1]].copy()
-        expected = Pkl.copy()
-        Ekk = np.einsum("iaa->ia", self.e_cov)
-        stat[:, ~diag] /= np.sqrt(Ekk[:, iu[0][~diag]] * Ekk[:, iu[1][~diag]])
-        expected[:, ~diag] /= np.sqrt(Pkk[:, iu[0][~diag]] * Pkk[:, iu[1][~diag]])
-        if N > 3:
-            fisher = z / np.sqrt(N - 3)
-            with np.errstate(divide="ignore"):  # a filter claiming a correlation of exactly +-1: band [+-1, +-1]
-                z_rho = np.arctanh(np.clip(expected, -1.0, 1.0))
-            lo = np.tanh(z_rho - fisher)
-            hi = np.tanh(z_rho + fisher)
-        else:  # too few runs for Fisher's interval: any correlation
-            lo, hi = np.full_like(expected, -1.0), np.full_like(expected, 1.0)
-        lo[:, diag] = Pkk * stats.chi2.ppf(level / 2, N - 1) / (N - 1)
-        hi[:, diag] = Pkk * stats.chi2.ppf(1 - level / 2, N - 1) / (N - 1)
-        out["covariance"] = (stat, expected, lo, hi)
-
-        half = z * np.sqrt(Pkk[:, :, None] * self.xhat_sq_mean[:, None, :] / N)
-        out["orthogonality"] = (self.orthogonality, 0 * half, -half, half)
-
+        if name == "mean_error":
+            half = t_band(np.sqrt(np.einsum("iaa->ia", self.e_cov)), N, level)
+            return self.e_mean, 0 * half, -half, half
+        Pkk = np.einsum("iaa->ia", self.P_post)
+        if name == "covariance":
+            iu = np.triu_indices(3)
+            diag = iu[0] == iu[1]
+            # variances: exact chi-square interval; correlations: Fisher's z-transform
+            stat = self.e_cov[:, iu[0], iu[1]].copy()
+            expected = self.P_post[:, iu[0], iu[1]].copy()
+            Ekk = np.einsum("iaa->ia", self.e_cov)
+            stat[:, ~diag] /= np.sqrt(Ekk[:, iu[0][~diag]] * Ekk[:, iu[1][~diag]])
+            expected[:, ~diag] /= np.sqrt(Pkk[:, iu[0][~diag]] * Pkk[:, iu[1][~diag]])
+            lo, hi = correlation_band(expected, N, level)
+            lo[:, diag], hi[:, diag] = variance_band(Pkk, N - 1, level)
+            return stat, expected, lo, hi
+        if name == "orthogonality":
+            half = normal_band(Pkk[:, :, None] * self.xhat_sq_mean[:, None, :], N, level)
+            return self.orthogonality, 0 * half, -half, half
         ok = ~self.missing
-        M = self.residual_moment[ok][:, :, ok, :]
-        Sd = np.einsum("iaa->ia", self.S[ok])
-        i, m = np.triu_indices(M.shape[0], k=1)
-        # uncentred correlation of two independent zero-mean Gaussians (the cosine of the angle between
-        # two vectors in R^N): t = rho sqrt((N - 1) / (1 - rho^2)) ~ t_{N-1}
-        Md = np.einsum("iaia->ia", M)
-        rho = M[i, :, m, :] / np.sqrt(Md[i][:, :, None] * Md[m][:, None, :])
-        q = stats.t.ppf(1 - level / 2, N - 1)
-        half = np.full_like(rho, q / np.sqrt(N - 1 + q**2))
-        out["residual_independence"] = (rho, 0 * half, -half, half)
-        out["residual_variance"] = (np.einsum("iaia->ia", M), Sd, Sd * stats.chi2.ppf(level / 2, N) / N,
-                                    Sd * stats.chi2.ppf(1 - level / 2, N) / N)
-        for name, dim, stat in (("nees", 3, self.nees), ("nis", 2, self.nis[ok])):
-            lo = stats.chi2.ppf(level / 2, dim * N) / N
-            hi = stats.chi2.ppf(1 - level / 2, dim * N) / N
-            out[name] = (stat, np.full_like(stat, dim), np.full_like(stat, lo), np.full_like(stat, hi))
-        return out
+        if name in ("residual_independence", "residual_variance"):
+            M = self.residual_moment[ok][:, :, ok, :]
+            Md = np.einsum("iaia->ia", M)
+            if name == "residual_variance":
+                Sd = np.einsum("iaa->ia", self.S[ok])
+                return (Md, Sd, *variance_band(Sd, N, level))
+            # uncentred correlation of two independent zero-mean Gaussians (the cosine of the angle between
+            # two vectors in R^N): t = rho sqrt((N - 1) / (1 - rho^2)) ~ t_{N-1}
+            i, m = np.triu_indices(M.shape[0], k=1)
+            rho = M[i, :, m, :] / np.sqrt(Md[i][:, :, None] * Md[m][:, None, :])
+            half = np.full_like(rho, uncentred_correlation_band(N, level))
+            return rho, 0 * half, -half, half
+        dim, stat = (3, self.nees) if name == "nees" else (2, self.nis[ok])
+        lo, hi = chi2_bounds(dim, N, level)
+        return stat, np.full_like(stat, dim), np.full_like(stat, lo), np.full_like(stat, hi)
+
+    def bands(self, level: float) -> dict:
+        """``{check: (statistic, expected, lower, upper)}`` at per-entry significance ``level``
+        (:meth:`band` of every check)."""
+        return {name: self.band(name, level) for name in CHECK_NAMES}
 
     def checks(self) -> dict[str, Check]:
         """The seven checks (see the module docstring), keyed by :data:`CHECK_NAMES`."""
-        pointwise = self.bands(self.alpha)
         out = {}
-        for name in CHECK_NAMES:
-            stat, expected, lo, hi = pointwise[name]
+        for name in CHECK_NAMES:  # one check at a time: its pointwise and simultaneous bands only
+            stat, expected, lo, hi = self.band(name, self.alpha)
             family = self.alpha / len(CHECK_NAMES) / np.size(stat)
-            _, _, slo, shi = self.bands(family)[name]
+            slo, shi = self.band(name, family)[2:]
             out[name] = Check(name, _DESCRIPTIONS[name], stat, expected, lo, hi, slo, shi)
         return out
 
@@ -243,15 +256,17 @@ class MonteCarloResult:
                              "so there is nothing between fixes to check")
         var = np.einsum("jaa->ja", b.e_cov)[off]
         Pkk = np.einsum("jaa->ja", b.P)[off]
-        N = self.n_runs
-
-        def band(level):
-            return (Pkk * stats.chi2.ppf(level / 2, N - 1) / (N - 1),
-                    Pkk * stats.chi2.ppf(1 - level / 2, N - 1) / (N - 1))
-
-        lo, hi = band(self.alpha)
-        slo, shi = band(self.alpha / var.size)
+        lo, hi = variance_band(Pkk, self.n_runs - 1, self.alpha)
+        slo, shi = variance_band(Pkk, self.n_runs - 1, self.alpha / var.size)
         return Check("between_fixes", _BETWEEN_DESCRIPTION, var, Pkk, lo, hi, slo, shi)
+
+    def all_checks(self) -> dict[str, Check]:
+        """:meth:`checks`, and ``between_fixes`` (:meth:`between_fixes_check`) when the run summed the
+        200 Hz error and some IMU samples lie between fixes: what the command line prints."""
+        out = self.checks()
+        if self.between is not None and self.params.n_imu > self.params.n_gps:
+            out["between_fixes"] = self.between_fixes_check()
+        return out
 
 
 @dataclass
@@ -283,35 +298,7 @@ _DESCRIPTIONS = {
 }
 
 
-
-class _BetweenSums:
-    """Sums of the 200 Hz error over realizations: O(n_imu) memory, whatever N."""
-
-    def __init__(self, n_imu: int):
-        self.n = 0
-        self.e = np.zeros((n_imu, 3))
-        self.ee = np.zeros((n_imu, 3, 3))
-
-    def add(self, dx_full, x_full):
-        e = dx_full
-        e -= x_full  # in place: dx_full is not used again
-        self.n += len(e)
-        self.e += e.sum(0)
-        et = np.ascontiguousarray(e.transpose(1, 2, 0))  # (n_imu, 3, n)
-        self.ee += et @ et.transpose(0, 2, 1)
-
-    def combine(self, other: "_BetweenSums"):
-        self.n += other.n
-        self.e += other.e
-        self.ee += other.ee
-
-    def result(self, params: CalibrationParams, P: np.ndarray) -> BetweenFixes:
-        N = self.n
-        mean = self.e / N
-        cov = (self.ee - N * np.einsum("ja,jb->jab", mean, mean)) / (N - 1)
-        return BetweenFixes(params.t_imu, P, mean, cov)
-
-
+# Sums over realizations ---------------------------------------------------------------------------
 class _Sums:
     """Sums over realizations of everything the checks need at the GPS fixes (present fixes only for
     the residuals): uncentred moments, combined chunk by chunk in chunk order."""
@@ -345,161 +332,404 @@ class _Sums:
             getattr(self, name).__iadd__(getattr(other, name))
 
 
-# Memory and time --------------------------------------------------------------------------------
-def _fixed_bytes(params: CalibrationParams) -> float:
-    """Bytes the whole run keeps: the interpreter and the filter's covariances."""
-    return _BASE_BYTES + _FIXED_BYTES_PER_SAMPLE * params.n_imu
+class _BetweenSums:
+    """Sums of the 200 Hz error ``e`` and ``e e^T`` over realizations, from the error itself (the
+    filterpy engine, whose estimates at 200 Hz are its own): O(n_imu) memory, whatever N."""
+
+    def __init__(self, n_imu: int):
+        self.n = 0
+        self.e = np.zeros((n_imu, 3))
+        self.ee = np.zeros((n_imu, 3, 3))
+
+    def add(self, dx_full, x_full):
+        e = dx_full
+        e -= x_full  # in place: dx_full is not used again
+        self.n += len(e)
+        self.e += e.sum(0)
+        et = np.ascontiguousarray(e.transpose(1, 2, 0))  # (n_imu, 3, n)
+        self.ee += et @ et.transpose(0, 2, 1)
+
+    def combine(self, other: "_BetweenSums"):
+        self.n += other.n
+        self.e += other.e
+        self.ee += other.ee
+
+    def moments(self, setup=None):
+        return self.e, self.ee
 
 
-def _sums_bytes(params: CalibrationParams, between_fixes: bool) -> float:
-    return _SUMS_BYTES_PER_FIX2 * params.n_gps**2 + (_SUMS_BYTES_PER_SAMPLE * params.n_imu if between_fixes else 0.0)
+class _BetweenMoments:
+    """The 200 Hz error's sums for the batch filter, by linearity, without the 200 Hz error itself.
+
+    In the GPS period of fix ``i`` (samples ``J = i r + k``, k = 0..r-1) the true error state is
+    ``dx_J = Phi^k dx_i + l_J + d_J``: the Euler model is exact for the IMU noise, whose part since the
+    fix is ``l_J = (-dt^2 u, -dt s, 0)`` with ``s = sum_{q<k} w_{ir+q}`` and ``u = sum_{q<k} s_q + s/2``,
+    and ``d_J`` is the deterministic part (zero for the Euler truth,
+    :func:`~.simulation.mean_error_state` for the analytic one).  With the running sums of the IMU
+    noise over the whole realization, ``c_j = sum_{l<=j} w_l`` and ``b_j = sum_{m<j} c_m``, read at
+    ``j = J - 1``: ``s = c - C_i`` and ``u = b + c/2 - B_i - (k + 1/2) C_i`` (``C_i, B_i``: the same just
+    before the fix).  The estimate is ``Phi_f^k x_post_i``, so ``e_J = G_k y_i + M (c, b) + d_J``
+    with per-realization numbers ``y_i = [e_post_i, (dx_i if Phi_f != Phi), C_i, B_i]``, fixed matrices
+    ``G_k`` and ``M (c, b) = (-dt^2 (b + c/2), -dt c, 0)``.  Kept, summed over realizations: ``[y, 1]
+    [y, 1]^T`` per period (n_gps, D, D), ``[y, 1] c`` per period and sample (n_gps, D, r; the same with
+    ``b`` follows, as ``b_{ir+q} = B_i + C_i + sum_{q'<q} c_{ir+q'}``) and ``c^2, c b, b^2`` per sample
+    (3, n_imu); the first two moments of ``e`` at every sample follow from them in :meth:`moments`.
+    Per chunk: two running sums and four sums of products over (n, n_imu) arrays, taken a few
+    realizations at a time; no (n, n_imu, 3) array.
+    """
+
+    def __init__(self, n_gps: int, r: int, n_imu: int, n_vars: int):
+        self.n = 0
+        self.yy = np.zeros((n_gps, n_vars + 1, n_vars + 1))
+        self.yc = np.zeros((n_gps, n_vars + 1, r))
+        self.ll = np.zeros((3, n_imu))
+
+    def add(self, params: CalibrationParams, w, y):
+        """Add one chunk: ``w`` (n, n_imu) its IMU noise (overwritten by its running sum), ``y``
+        (n, n_gps, n_vars - 2) its ``[e_post, (dx)]`` at the fixes.  The realizations are taken
+        :data:`_ROWS` at a time, so that each one's running sums are still in the cache when they are
+        multiplied."""
+        n, n_gps, r, n_imu = len(w), params.n_gps, params.steps_per_fix, params.n_imu
+        fix = params.fix_indices
+        nf, last = n_gps - 1, n_imu - (n_gps - 1) * r  # full periods; samples from the last fix on
+        b_rows = np.empty((min(n, _ROWS), n_imu))
+        self.n += n
+        for l0 in range(0, n, _ROWS):
+            rows = min(_ROWS, n - l0)
+            c = np.cumsum(w[l0:l0 + rows], axis=1, out=w[l0:l0 + rows])  # in place: c_j = sum_{l <= j} w_l
+            b = b_rows[:rows]  # b_j = sum_{m < j} c_m
+            b[:, 0] = 0.0
+            np.cumsum(c[:, :-1], axis=1, out=b[:, 1:])
+            y1 = np.zeros((rows, n_gps, y.shape[2] + 3))  # [y, C_i, B_i, 1]; C_0 = B_0 = 0
+            y1[..., :-3] = y[l0:l0 + rows]
+            y1[:, 1:, -3], y1[:, 1:, -2] = c[:, fix[1:] - 1], b[:, fix[1:] - 1]
+            y1[..., -1] = 1.0
+            yT = np.ascontiguousarray(y1.transpose(1, 2, 0))  # (n_gps, D, rows)
+            self.yy += yT @ yT.transpose(0, 2, 1)
+            # period i, column q: c at j = i r + q (the sums with b follow from these, see moments)
+            if nf > 0:
+                self.yc[:nf] += yT[:nf] @ c[:, : nf * r].reshape(rows, nf, r).transpose(1, 0, 2)
+            self.yc[nf, :, :last] += yT[nf] @ c[:, nf * r:]
+            self.ll[0] += np.einsum("nj,nj->j", c, c)
+            self.ll[1] += np.einsum("nj,nj->j", c, b)
+            self.ll[2] += np.einsum("nj,nj->j", b, b)
+
+    def combine(self, other: "_BetweenMoments"):
+        self.n += other.n
+        self.yy += other.yy
+        self.yc += other.yc
+        self.ll += other.ll
+
+    def moments(self, setup: "_Setup"):
+        """``(sum e, sum e e^T)`` over realizations at every IMU sample, (n_imu, 3) and (n_imu, 3, 3)."""
+        params = setup.params
+        n_gps, r, n_imu, dt = params.n_gps, params.steps_per_fix, params.n_imu, params.dt
+        G = setup.G  # (r, 3, n_vars)
+        nv = G.shape[2]
+        N = self.n
+        E1 = np.empty((n_gps * r, 3))
+        E2 = np.empty((n_gps * r, 3, 3))
+        ll = np.zeros((3, n_gps * r))
+        ll[:, 1:n_imu] = self.ll[:, : n_imu - 1]  # sample J reads the running sums at J - 1
+        ll = ll.reshape(3, n_gps, r)
+        step = max(1, _BLOCK_SAMPLES // r)  # periods at a time: temporaries of at most 65536 + r samples
+        for i0 in range(0, n_gps, step):
+            i1 = min(n_gps, i0 + step)
+            yy = self.yy[i0:i1]
+            A1 = np.einsum("kad,id->ika", G, yy[:, :nv, nv])
+            A2 = (G[None] @ yy[:, None, :nv, :nv]) @ np.swapaxes(G, 1, 2)[None]
+            if r > 1:  # M (c, b) at the samples k >= 1 (column k - 1 of the period)
+                Yc = self.yc[i0:i1, :, : r - 1]  # (periods, D, r - 1)
+                # b_{ir+q} = B_i + C_i + sum_{q' < q} c_{ir+q'}, and C_i, B_i are columns of y
+                Yb = np.empty_like(Yc)
+                Yb[..., 0] = 0.0
+                np.cumsum(Yc[..., :-1], axis=2, out=Yb[..., 1:])
+                Yb += (yy[:, :, nv - 1] + yy[:, :, nv - 2])[:, :, None]
+                Yp = -dt * dt * (Yb + 0.5 * Yc)  # sum [y, 1] l_p
+                Yv = -dt * Yc  # sum [y, 1] l_v
+                A1[:, 1:, 0] += Yp[:, nv]
+                A1[:, 1:, 1] += Yv[:, nv]
+                Z = np.zeros((i1 - i0, r - 1, nv, 3))
+                Z[..., 0] = np.swapaxes(Yp[:, :nv], 1, 2)
+                Z[..., 1] = np.swapaxes(Yv[:, :nv], 1, 2)
+                cross = G[None, 1:] @ Z
+                A2[:, 1:] += cross + np.swapaxes(cross, 2, 3)
+                cc, cb, bb = ll[0, i0:i1, 1:], ll[1, i0:i1, 1:], ll[2, i0:i1, 1:]
+                A2[:, 1:, 0, 0] += dt**4 * (bb + cb + 0.25 * cc)
+                pv = dt**3 * (cb + 0.5 * cc)
+                A2[:, 1:, 0, 1] += pv
+                A2[:, 1:, 1, 0] += pv
+                A2[:, 1:, 1, 1] += dt * dt * cc
+            E1[i0 * r: i1 * r] = A1.reshape(-1, 3)
+            E2[i0 * r: i1 * r] = A2.reshape(-1, 3, 3)
+        E1, E2 = E1[:n_imu], E2[:n_imu]
+        if setup.offset is not None:  # the deterministic part d_J
+            d = setup.offset
+            E2 += np.einsum("ja,jb->jab", d, E1) + np.einsum("ja,jb->jab", E1, d) + N * np.einsum("ja,jb->jab", d, d)
+            E1 += N * d
+        return E1, E2
 
 
-def _realization_bytes(params: CalibrationParams, between_fixes: bool = False) -> float:
-    """Bytes one realization of a chunk in flight needs (its draws, its filter, its statistics)."""
-    per_sample = _BYTES_PER_SAMPLE + (_BETWEEN_BYTES_PER_SAMPLE if between_fixes else 0.0)
-    return per_sample * params.n_imu + _BYTES_PER_FIX * params.n_gps
+def _between_result(params: CalibrationParams, bsums, setup, P: np.ndarray) -> BetweenFixes:
+    N = bsums.n
+    e, ee = bsums.moments(setup)
+    mean = e / N
+    cov = (ee - N * np.einsum("ja,jb->jab", mean, mean)) / (N - 1)
+    return BetweenFixes(params.t_imu, P, mean, cov)
 
 
-def _partial_bytes(params: CalibrationParams, between_fixes: bool = False) -> float:
-    """Bytes of one chunk's partial sums, alive until they are added in chunk order."""
-    return _PARTIAL_BYTES_PER_FIX2 * params.n_gps**2 + (_PARTIAL_BYTES_PER_SAMPLE * params.n_imu
-                                                          if between_fixes else 0.0)
-
-
-def default_workers() -> int:
-    """Threads the Monte Carlo uses by default: ``min(2, os.cpu_count())``."""
-    return max(1, min(2, os.cpu_count() or 1))
-
-
+# Chunks and memory -------------------------------------------------------------------------------
 def chunk_size(params: CalibrationParams) -> int:
     """Realizations simulated together for ``params``: :data:`CHUNK_SIZE`, or fewer when the
-    realizations are long, so that the estimated peak with one chunk in flight stays under
-    :data:`MEMORY_LIMIT` even with ``between_fixes`` (at least 1; :func:`estimate_run` refuses runs
-    where even 1 does not fit).  It depends on neither ``between_fixes`` nor ``workers``, so the random
-    draws, and the seven checks, are the same with and without them."""
-    room = MEMORY_LIMIT - _fixed_bytes(params) - _sums_bytes(params, True) - _partial_bytes(params, True)
-    return int(max(1, min(CHUNK_SIZE, room // _realization_bytes(params, between_fixes=True))))
+    realizations are long (a fixed rule on the numbers of IMU samples and GPS fixes; at least 1;
+    :func:`estimate_run` refuses runs where even 1 does not fit).  It depends on neither
+    ``between_fixes``, ``filter`` nor ``workers``, so the random draws, and the seven checks, are the
+    same with and without them."""
+    require_instance("params", params, CalibrationParams)
+    n_imu, n_gps = params.n_imu, params.n_gps
+    room = (MEMORY_LIMIT - _RULE_FIXED - _RULE_FIXED_PER_SAMPLE * n_imu
+            - (_RULE_SUMS_PER_FIX2 * n_gps**2 + _RULE_SUMS_PER_SAMPLE * n_imu)
+            - (_RULE_PARTIAL_PER_FIX2 * n_gps**2 + _RULE_PARTIAL_PER_SAMPLE * n_imu))
+    return int(max(1, min(CHUNK_SIZE, room // (_RULE_PER_SAMPLE * n_imu + _RULE_PER_FIX * n_gps))))
 
 
 def chunk_sizes(params: CalibrationParams, n_runs: int) -> list[int]:
     """The sizes of the chunks of a run of ``n_runs`` realizations, in order."""
-    chunk = chunk_size(params)
-    return [chunk] * (n_runs // chunk) + ([n_runs % chunk] if n_runs % chunk else [])
+    return core.chunk_sizes(chunk_size(params), n_runs)
 
 
 def chunk_generators(params: CalibrationParams, n_runs: int, seed) -> list[tuple[int, np.random.Generator]]:
-    """``(size, generator)`` of every chunk: chunk ``c`` draws its realizations (with
-    ``simulation.draw_realizations``, the draws of ``simulate``) from its own stream,
-    ``numpy.random.Generator(numpy.random.PCG64DXSM(numpy.random.SeedSequence(seed).spawn(n_chunks)[c]))``
-    (PCG64DXSM, numpy's recommended successor of ``default_rng``'s PCG64, draws normals about 30 % faster
-    here); for a Generator ``seed``, from ``seed.spawn(n_chunks)``.  So a chunk's numbers do not depend
-    on which thread runs it."""
-    sizes = chunk_sizes(params, n_runs)
-    if isinstance(seed, np.random.Generator):
-        gens = seed.spawn(len(sizes))
-    else:
-        gens = [np.random.Generator(np.random.PCG64DXSM(s)) for s in np.random.SeedSequence(seed).spawn(len(sizes))]
-    return list(zip(sizes, gens))
+    """``(size, generator)`` of every chunk of :func:`run_monte_carlo` (the core's
+    :func:`kfcal_helpers.montecarlo.chunk_generators` with :func:`chunk_size`): chunk ``c`` draws its
+    realizations (with ``simulation.draw_realizations``, the draws of ``simulate``) from its own stream,
+    ``numpy.random.Generator(numpy.random.PCG64DXSM(numpy.random.SeedSequence(seed).spawn(n_chunks)[c]))``;
+    for a Generator ``seed``, from ``seed.spawn(n_chunks)``.  So a chunk's numbers do not depend on
+    which thread runs it."""
+    return core.chunk_generators(chunk_size(params), n_runs, seed)
 
 
-def _chunk_bytes(params: CalibrationParams, n_runs: int, between_fixes: bool) -> float:
-    """Bytes of one chunk in flight: its realizations and its partial sums."""
-    return (min(n_runs, chunk_size(params)) * _realization_bytes(params, between_fixes)
-            + _partial_bytes(params, between_fixes))
+@dataclass
+class _Setup:
+    """What every chunk shares (read only), computed when the run starts."""
+
+    params: CalibrationParams
+    model: ErrorStateModel
+    missing: np.ndarray
+    P: np.ndarray
+    P_prior: np.ndarray
+    S: np.ndarray
+    K: np.ndarray
+    G: np.ndarray | None  # (r, 3, n_vars) the 200 Hz error from [e_post, (dx), S_i] (batch, between)
+    with_dx: bool
+    truth: str
+    offset: np.ndarray | None  # (n_imu, 3) the deterministic part of the 200 Hz error (analytic truth)
+
+
+class CalibrationExperiment:
+    """The calibration Monte Carlo as a :class:`kfcal_helpers.montecarlo.Experiment` of the shared core.
+
+    Built from validated settings (see :func:`run_monte_carlo`); cheap to build, so that
+    :func:`estimate_run` can ask it its memory and time before anything of the scenario's size exists.
+    The data-independent part of the filter (covariances, gains) is computed in :meth:`empty`, when
+    the run starts.  Sizes in bytes, times in seconds.
+    """
+
+    def __init__(self, params: CalibrationParams, *, filter: str = "batch", truth: str = "euler",
+                 alpha: float = 0.05, missing=None, model: ErrorStateModel | None = None,
+                 between_fixes: bool = False):
+        self.params, self.filter, self.truth, self.alpha = params, filter, truth, alpha
+        self.missing = np.zeros(params.n_gps, bool) if missing is None else missing
+        self.given_model = model
+        self.between = between_fixes
+        self.setup: _Setup | None = None
+
+    # memory and time ---------------------------------------------------------------------------
+    def chunk_size(self) -> int:
+        return chunk_size(self.params)
+
+    def _between_sums_bytes(self) -> float:
+        p = self.params
+        if not self.between:
+            return 0.0
+        if self.filter == "filterpy":
+            return 96.0 * p.n_imu
+        d = 9 if self.given_model is not None else 6  # [e_post, (dx), C_i, B_i, 1]
+        return 8.0 * (p.n_gps * d * d + d * p.n_gps * p.steps_per_fix + 3 * p.n_imu)
+
+    def fixed_bytes(self, n_runs: int) -> float:
+        """The interpreter, the filter's covariances and the sums of the whole run."""
+        p = self.params
+        return (_BASE_BYTES + _FIXED_BYTES_PER_SAMPLE * p.n_imu + _SUMS_BYTES_PER_FIX2 * p.n_gps**2
+                + self._between_sums_bytes())
+
+    def chunk_bytes(self, size: int) -> float:
+        """One chunk of ``size`` realizations in flight: its draws, its filtering and its partial sums."""
+        p = self.params
+        per_sample = _BYTES_PER_SAMPLE + (_BETWEEN_BYTES_PER_SAMPLE[self.filter] if self.between else 0.0)
+        return (size * (per_sample * p.n_imu + _BYTES_PER_FIX * p.n_gps)
+                + _PARTIAL_BYTES_PER_FIX2 * p.n_gps**2 + self._between_sums_bytes())
+
+    def final_bytes(self, n_runs: int) -> float:
+        """The statistics of the checks at the end (the pairwise residual statistics; with
+        between_fixes the 200 Hz moments, and the temporaries of a block of periods), or the start
+        (the powers of Phi over one GPS period, twice), whichever is larger."""
+        p = self.params
+        r = p.steps_per_fix
+        start = _POWERS_BYTES_PER_STEP * (r + 1)
+        end = _STATS_BYTES_PER_FIX2 * p.n_gps**2
+        if self.between:
+            end += (_STATS_BYTES_PER_SAMPLE * p.n_imu
+                    + _STATS_BYTES_PER_BLOCK_SAMPLE * min(p.n_imu, _BLOCK_SAMPLES + r))
+        return max(start, end)
+
+    def seconds(self, n_runs: int) -> float:
+        p = self.params
+        return _SECONDS_PER_SAMPLE[self.filter] * p.n_imu * float(n_runs) + _SECONDS_PER_FIX2 * p.n_gps**2
+
+    def what(self) -> str:
+        p = self.params
+        return f"one realization of {p.n_imu} IMU samples and {p.n_gps} GPS fixes, filter {self.filter!r}"
+
+    # the run -----------------------------------------------------------------------------------
+    def empty(self):
+        p = self.params
+        m = filter_model(p, self.given_model)
+        P, P_prior, S, K = covariance_sequence(p, self.missing, m)
+        G, with_dx, offset = None, False, None
+        if self.between and self.filter == "batch":
+            r = p.steps_per_fix
+            Pf = between_fixes(p, m)[0][:r]  # the filter's Phi^k
+            Pt = between_fixes(p, error_state_model(p))[0][:r]  # the true one
+            with_dx = not np.array_equal(Pf, Pt)
+            g = np.zeros((r, 3, 2))  # the columns of C_i and B_i, for k >= 1 (at the fix, k = 0: none)
+            g[1:, 0, 0] = p.dt * p.dt * (np.arange(1, r) + 0.5)
+            g[1:, 1, 0] = p.dt
+            g[1:, 0, 1] = p.dt * p.dt
+            G = np.concatenate([Pf, Pt - Pf, g] if with_dx else [Pf, g], axis=2)
+            if self.truth != "euler":
+                c = mean_error_state(p, self.truth)
+                fix = p.fix_indices
+                base = np.repeat(c[fix], r, axis=0)[: p.n_imu]  # c at the fix of each sample's period
+                k = np.tile(np.arange(r), p.n_gps)[: p.n_imu]
+                offset = c - np.einsum("jab,jb->ja", Pt[k], base)
+        self.setup = _Setup(p, m, self.missing, P, P_prior, S, K, G, with_dx, self.truth, offset)
+        return self._new_sums()
+
+    def _new_sums(self):
+        p = self.params
+        sums = _Sums(p.n_gps, int((~self.missing).sum()))
+        if not self.between:
+            return sums, None
+        if self.filter == "filterpy":
+            return sums, _BetweenSums(p.n_imu)
+        return sums, _BetweenMoments(p.n_gps, p.steps_per_fix, p.n_imu, self.setup.G.shape[2])
+
+    def run_chunk(self, size: int, rng: np.random.Generator, chunk: core.Chunk):
+        """Draw, filter, and return the chunk's partial sums (and the 200 Hz ones with between_fixes)."""
+        setup, params = self.setup, self.params
+        missing = setup.missing
+        draws = draw_realizations(params, size, rng)
+        dx = error_state_at_fixes(params, draws, self.truth)
+        dz = dx[..., :2] + draws.eta
+        dz[:, missing] = np.nan
+        if self.filter == "batch":
+            x_prior, x_post, y = filter_estimates(params, dz, setup.K, missing, setup.model)
+        else:
+            x_prior, x_post = np.empty((size, params.n_gps, 3)), np.empty((size, params.n_gps, 3))
+            y = np.empty((size, params.n_gps, 2))
+            runs = np.empty((size, params.n_imu, 3)) if self.between else None  # filterpy's 200 Hz estimates
+            for l in range(size):  # the bar moves with every realization (about 0.03 s each)
+                chunk.check()
+                res = run_filterpy(params, dz[l], self.given_model)
+                x_prior[l], x_post[l], y[l] = res.x_prior, res.x_post, res.y
+                if runs is not None:
+                    runs[l] = res.x
+                del res
+                chunk.tick()
+        sums, bsums = self._new_sums()
+        sums.add(dx, x_prior, x_post, y[:, ~missing])
+        if bsums is not None:
+            if self.filter == "batch":
+                e_post = dx - x_post
+                bsums.add(params, draws.w, np.concatenate([e_post, dx], axis=2) if setup.with_dx else e_post)
+            else:
+                bsums.add(error_state_full(params, draws, self.truth), runs)
+        return sums, bsums
+
+    def add(self, total, part):
+        if part is not None:
+            total[0].combine(part[0])
+            if total[1] is not None:
+                total[1].combine(part[1])
+        return total
+
+    def result(self, total, n_runs: int, seconds: float) -> MonteCarloResult:
+        start = time.perf_counter()
+        sums, bsums = total
+        setup, params = self.setup, self.params
+        P, P_prior, S, missing = setup.P, setup.P_prior, setup.S, setup.missing
+        N = sums.n
+        e_mean = sums.e / N
+        e_cov = (sums.m[:, 0:3, 0:3] - N * np.einsum("ia,ib->iab", e_mean, e_mean)) / (N - 1)
+        eb_mean = sums.eb / N
+        eb_cov = (sums.m[:, 3:6, 3:6] - N * np.einsum("ia,ib->iab", eb_mean, eb_mean)) / (N - 1)
+        orth = (sums.m[:, 0:3, 6:9] - np.einsum("ia,ib->iab", e_mean, sums.x)) / N
+        xx = np.einsum("iaa->ia", sums.m[:, 6:9, 6:9])
+        P_post = P[params.fix_indices]
+        # run-averaged NEES and NIS from the summed outer products: sum_l e^T P^-1 e = trace(P^-1 sum_l e e^T)
+        nees = np.einsum("iab,iab->i", np.linalg.inv(P_post), sums.m[:, 0:3, 0:3]) / N
+        n_gps, ok = params.n_gps, ~missing
+        moment = np.full((n_gps, 2, n_gps, 2), np.nan)
+        idx = np.flatnonzero(ok)
+        moment[np.ix_(idx, [0, 1], idx, [0, 1])] = (sums.rr / N).reshape(len(idx), 2, len(idx), 2)
+        nis = np.full(n_gps, np.nan)
+        nis[ok] = np.einsum("iab,iaib->i", np.linalg.inv(S[ok]), moment[ok][:, :, ok, :])
+        result = MonteCarloResult(
+            params=params, n_runs=N, filter=self.filter, truth=self.truth, alpha=self.alpha, seconds=0.0,
+            t_gps=params.t_gps, missing=missing, P_prior=P_prior, P_post=P_post, S=S,
+            e_mean=e_mean, e_cov=e_cov, e_prior_mean=eb_mean, e_prior_cov=eb_cov,
+            orthogonality=orth, xhat_sq_mean=xx / N, residual_moment=moment, nees=nees, nis=nis,
+            between=_between_result(params, bsums, setup, P) if bsums is not None else None)
+        result.checks()  # the statistics are part of the timed work
+        result.seconds = seconds + time.perf_counter() - start
+        return result
 
 
 def chunks_in_flight(params: CalibrationParams, n_runs: int, workers: int | None = None,
-                     between_fixes: bool = False) -> int:
+                     between_fixes: bool = False, filter: str = "batch") -> int:
     """How many chunks run at once: ``workers`` (default :func:`default_workers`), but no more than
-    there are chunks, nor than fit in :data:`MEMORY_LIMIT` (at least 1)."""
-    workers = default_workers() if workers is None else workers
-    room = MEMORY_LIMIT - _fixed_bytes(params) - _sums_bytes(params, between_fixes)
-    fit = int(room // _chunk_bytes(params, n_runs, between_fixes))
-    n_chunks = -(-n_runs // chunk_size(params))  # without listing them: n_runs may be far too large to run
-    return max(1, min(workers, n_chunks, fit))
+    there are chunks, nor than fit in :data:`MEMORY_LIMIT` (at least 1); the core's
+    :func:`kfcal_helpers.montecarlo.estimate` (ValueError when the run does not fit at all)."""
+    exp = CalibrationExperiment(params, filter=filter, between_fixes=between_fixes)
+    return core.estimate(exp, n_runs, workers, what=exp.what()).in_flight
 
 
 def estimate_run(params: CalibrationParams, n_runs: int, filter: str = "batch",
                  runs_name: str = "n_runs", params_name: str = "params",
                  extra_bytes: float = 0.0, between_fixes: bool = False,
-                 workers: int | None = None) -> tuple[float, float]:
+                 workers: int | None = None, model: ErrorStateModel | None = None) -> tuple[float, float]:
     """Estimated ``(peak bytes, seconds)`` of :func:`run_monte_carlo`, with every chunk in flight
-    (:func:`chunks_in_flight`) counted; ValueError, with the estimate, when the peak exceeds
-    :data:`MEMORY_LIMIT` (the scenario has too many IMU samples or GPS fixes) or the time exceeds
-    :data:`MAX_SECONDS` (``runs_name`` and ``params_name`` name the arguments in the message).
+    counted (the core's :func:`kfcal_helpers.montecarlo.estimate`); ValueError, with the estimate,
+    when the peak exceeds :data:`MEMORY_LIMIT` (naming ``params_name``: the scenario has too many IMU
+    samples or GPS fixes) or the time exceeds :data:`MAX_SECONDS` (naming ``runs_name``).
     ``extra_bytes``: what the caller needs after the Monte Carlo, while its result is alive (the
-    command line's figures).  The time is that of one thread (a conservative bound)."""
-    flying = chunks_in_flight(params, n_runs, workers, between_fixes)
-    running = _sums_bytes(params, between_fixes) + flying * _chunk_bytes(params, n_runs, between_fixes)
-    # the caller's extra work (figures) runs with the result alive and computes its checks again
-    peak = _fixed_bytes(params) + max(running, _STATS_BYTES_PER_FIX2 * params.n_gps**2 + extra_bytes)
-    if peak > MEMORY_LIMIT:
-        raise ValueError(
-            f"{params_name}: one realization of {params.n_imu} IMU samples and {params.n_gps} GPS fixes needs about "
-            f"{peak / 1e6:.0f} MB, more than the {MEMORY_LIMIT / 1e6:.0f} MB allowed; use a shorter duration "
-            f"or lower rates (at most about 1000 GPS fixes and 3 million IMU samples)")
-    seconds = (_SECONDS_PER_SAMPLE[filter] * params.n_imu * float(n_runs)
-               + _SECONDS_PER_FIX2 * params.n_gps**2)
-    if seconds > MAX_SECONDS:
-        raise ValueError(f"{runs_name}: {n_runs} realizations with filter {filter!r} would take about "
-                         f"{seconds / 3600:.3g} h, more than the {MAX_SECONDS / 3600:g} h allowed; use fewer")
-    return peak, seconds
+    command line's output and figures).  The time is that of one thread (a conservative bound)."""
+    require_instance("params", params, CalibrationParams)
+    require_choice("filter", filter, FILTERS)
+    exp = CalibrationExperiment(params, filter=filter, between_fixes=bool(between_fixes), model=model)
+    est = core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,
+                        params_name=params_name, what=exp.what(), scenario_advice=_SCENARIO_ADVICE)
+    return est.peak_bytes, est.seconds
 
 
-# The run -----------------------------------------------------------------------------------------
-@dataclass
-class _Setup:
-    """What every chunk shares (read only)."""
-
-    params: CalibrationParams
-    truth: str
-    filter: str
-    model: ErrorStateModel
-    given_model: ErrorStateModel | None
-    missing: np.ndarray
-    K: np.ndarray
-    between: bool
-    cancel: threading.Event
-
-
-def _chunk(setup: _Setup, size: int, rng: np.random.Generator, on_realization=None):
-    """One chunk: draw, filter, and return its partial sums (and the 200 Hz ones with ``between``)."""
-    if setup.cancel.is_set():
-        return None
-    params, missing = setup.params, setup.missing
-    draws = draw_realizations(params, size, rng)
-    dx = error_state_at_fixes(params, draws, setup.truth)
-    dz = dx[..., :2] + draws.eta
-    dz[:, missing] = np.nan
-    runs = None
-    if setup.filter == "batch":
-        x_prior, x_post, y = filter_estimates(params, dz, setup.K, missing, setup.model)
-    else:
-        runs = []
-        for l in range(size):  # the bar moves with every realization (about 0.03 s each)
-            if setup.cancel.is_set():
-                return None
-            res = run_filterpy(params, dz[l], setup.given_model)
-            runs.append((res.x_prior, res.x_post, res.y, res.x if setup.between else None))
-            if on_realization is not None:
-                on_realization()
-        x_prior, x_post, y = (np.stack([run[k] for run in runs]) for k in range(3))
-    sums = _Sums(params.n_gps, int((~missing).sum()))
-    sums.add(dx, x_prior, x_post, y[:, ~missing])
-    bsums = None
-    if setup.between:
-        bsums = _BetweenSums(params.n_imu)
-        x_full = (estimate_between_fixes(params, x_post, setup.model) if runs is None
-                  else np.stack([run[3] for run in runs]))
-        bsums.add(error_state_full(params, draws, setup.truth), x_full)
-    return sums, bsums
+_SCENARIO_ADVICE = ("use a shorter duration or lower rates (at most about 1000 GPS fixes and 3 million IMU "
+                    "samples)")
 
 
 def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: str = "batch",
                     truth: str = "euler", alpha: float = 0.05, missing_fixes=None, progress: bool | None = False,
                     model: ErrorStateModel | None = None, between_fixes: bool = False,
-                    workers: int | None = None) -> MonteCarloResult:
+                    workers: int | None = None, extra_bytes: float = 0.0) -> MonteCarloResult:
     """Simulate ``n_runs`` realizations, filter them, and accumulate the check statistics.
 
     Parameters
@@ -517,9 +747,10 @@ def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: s
         truth is always simulated with ``params``
     between_fixes : also accumulate the error at every 200 Hz sample (``result.between``,
         checked by ``result.between_fixes_check()``); memory O(n_imu), independent of N
-    workers : threads running chunks at once (default ``min(2, os.cpu_count())``; fewer when the
+    workers : threads running chunks at once (default :func:`default_workers`; fewer when the
         chunks would not fit in :data:`MEMORY_LIMIT`).  The result is the same, bit for bit, for any
         number: every chunk has its own random stream and the sums are added in chunk order.
+    extra_bytes : bytes the caller needs while the result is alive (counted in the estimate)
 
     Returns
     -------
@@ -534,7 +765,7 @@ def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: s
     n_runs = require_int("n_runs", n_runs, minimum=2)
     require_choice("filter", filter, FILTERS)
     require_choice("truth", truth, TRUTH_MODELS)
-    alpha = require_probability("alpha", alpha)
+    alpha = require_significance("alpha", alpha)
     missing = require_mask("missing_fixes", missing_fixes, params.n_gps)
     missing = np.zeros(params.n_gps, bool) if missing is None else missing.copy()
     if (~missing).sum() < 2:
@@ -544,102 +775,9 @@ def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: s
         seed = require_seed("seed", seed)
     if not isinstance(between_fixes, (bool, np.bool_)):
         raise ValueError(f"between_fixes must be True or False, got {between_fixes!r}")
-    between_fixes = bool(between_fixes)
-    workers = default_workers() if workers is None else require_int("workers", workers, minimum=1)
-    m = filter_model(params, model)
-    estimate_run(params, n_runs, filter, between_fixes=between_fixes, workers=workers)
-
-    start = time.perf_counter()
-    cov = covariance_sequence(params, missing, m)
-    P, P_prior, S, K = cov
-    setup = _Setup(params, truth, filter, m, model, missing, K, between_fixes, threading.Event())
-    chunks = chunk_generators(params, n_runs, seed)
-    sums = _Sums(params.n_gps, int((~missing).sum()))
-    bsums = _BetweenSums(params.n_imu) if between_fixes else None
-    bar = _progress_bar(n_runs, f"Monte Carlo ({filter})", progress)
-
-    def combine(part, size):
-        sums.combine(part[0])
-        if bsums is not None:
-            bsums.combine(part[1])
-        if filter == "batch":
-            bar.update(size)
-
-    flying = chunks_in_flight(params, n_runs, workers, between_fixes)
-    try:
-        if flying == 1:  # in this thread: the bar moves with every filterpy realization
-            for size, rng in chunks:
-                combine(_chunk(setup, size, rng, lambda: bar.update(1)), size)
-        else:
-            _run_on_threads(setup, chunks, flying, combine, bar)
-    finally:
-        setup.cancel.set()  # after an interruption, the other threads stop at their next realization or chunk
-        bar.close()
-
-    N = sums.n
-    e_mean = sums.e / N
-    e_cov = (sums.m[:, 0:3, 0:3] - N * np.einsum("ia,ib->iab", e_mean, e_mean)) / (N - 1)
-    eb_mean = sums.eb / N
-    eb_cov = (sums.m[:, 3:6, 3:6] - N * np.einsum("ia,ib->iab", eb_mean, eb_mean)) / (N - 1)
-    orth = (sums.m[:, 0:3, 6:9] - np.einsum("ia,ib->iab", e_mean, sums.x)) / N
-    xx = np.einsum("iaa->ia", sums.m[:, 6:9, 6:9])
-    P_post = P[params.fix_indices]
-    # run-averaged NEES and NIS from the summed outer products: sum_l e^T P^-1 e = trace(P^-1 sum_l e e^T)
-    nees = np.einsum("iab,iab->i", np.linalg.inv(P_post), sums.m[:, 0:3, 0:3]) / N
-    n_gps, ok = params.n_gps, ~missing
-    moment = np.full((n_gps, 2, n_gps, 2), np.nan)
-    idx = np.flatnonzero(ok)
-    moment[np.ix_(idx, [0, 1], idx, [0, 1])] = (sums.rr / N).reshape(len(idx), 2, len(idx), 2)
-    nis = np.full(n_gps, np.nan)
-    nis[ok] = np.einsum("iab,iaib->i", np.linalg.inv(S[ok]), moment[ok][:, :, ok, :])
-    result = MonteCarloResult(
-        params=params, n_runs=N, filter=filter, truth=truth, alpha=alpha, seconds=0.0,
-        t_gps=params.t_gps, missing=missing, P_prior=P_prior, P_post=P_post, S=S,
-        e_mean=e_mean, e_cov=e_cov, e_prior_mean=eb_mean, e_prior_cov=eb_cov,
-        orthogonality=orth, xhat_sq_mean=xx / N, residual_moment=moment, nees=nees, nis=nis,
-        between=bsums.result(params, P) if bsums is not None else None)
-    result.checks()  # the statistics are part of the timed work
-    result.seconds = time.perf_counter() - start
-    return result
-
-
-def _run_on_threads(setup: _Setup, chunks, flying: int, combine, bar):
-    """Run the chunks on ``flying`` threads, at most ``flying`` submitted at a time, and add their sums
-    in chunk order.  The bar is moved from this thread only (a count the workers raise is read every
-    0.1 s).  An interruption (KeyboardInterrupt) cancels what has not started and stops the rest at
-    their next realization (filterpy) or chunk."""
-    lock = threading.Lock()
-    done = [0, 0]  # realizations finished by the workers (filterpy), and shown on the bar
-
-    def one_more():
-        with lock:
-            done[0] += 1
-
-    def show():
-        with lock:
-            new = done[0] - done[1]
-            done[1] = done[0]
-        if new:
-            bar.update(new)
-
-    pool = ThreadPoolExecutor(max_workers=flying, thread_name_prefix="kfcal-mc")
-    try:
-        pending = deque()
-        queue = iter(chunks)
-        for size, rng in itertools.islice(queue, flying):
-            pending.append((size, pool.submit(_chunk, setup, size, rng, one_more)))
-        while pending:
-            size, future = pending.popleft()
-            while True:
-                try:
-                    part = future.result(timeout=0.1)
-                    break
-                except FutureTimeout:
-                    show()
-            show()
-            combine(part, size)
-            for size, rng in itertools.islice(queue, 1):
-                pending.append((size, pool.submit(_chunk, setup, size, rng, one_more)))
-    finally:
-        setup.cancel.set()
-        pool.shutdown(wait=False, cancel_futures=True)
+    workers = None if workers is None else require_int("workers", workers, minimum=1)
+    filter_model(params, model)  # validates model
+    exp = CalibrationExperiment(params, filter=filter, truth=truth, alpha=alpha, missing=missing, model=model,
+                                between_fixes=bool(between_fixes))
+    return core.run(exp, n_runs, seed, workers=workers, progress=progress, desc=f"Monte Carlo ({filter})",
+                    extra_bytes=extra_bytes, what=exp.what(), scenario_advice=_SCENARIO_ADVICE)

@@ -34,6 +34,7 @@ __all__ = [
     "draw_realizations",
     "error_state_at_fixes",
     "error_state_full",
+    "mean_error_state",
 ]
 
 TRUTH_MODELS = ("euler", "analytic")
@@ -248,6 +249,21 @@ def error_state_full(params: CalibrationParams, draws: Draws, truth: str = "eule
     del S
     out[..., 0] = dp - dt * dt * (b * (0.5 * j * j) + S2)
     out[..., 2] = b
+    return out
+
+
+def mean_error_state(params: CalibrationParams, truth: str = "euler") -> np.ndarray:
+    """The true error state ``[p - p_c, v - v_c, b]`` at every IMU sample of the realization whose draws
+    are all zero (initial conditions at their prior means, no bias, no IMU noise), (n_imu, 3) in m, m/s,
+    m/s^2: zero for the Euler truth, the deterministic mismatch of the dead reckoning for the analytic
+    truth.  The error state of any realization is this plus a part linear in its draws."""
+    require_instance("params", params, CalibrationParams)
+    require_choice("truth", truth, TRUTH_MODELS)
+    out = np.zeros((params.n_imu, 3))
+    if truth != "euler":  # the Euler truth integrates a(t) as the IMU does: no deterministic part
+        zero = Draws(np.array([params.p0_mean]), np.array([params.v0_mean]), np.zeros(1), None, None)
+        dp, dv = _truth_minus_reckoning(params, zero, truth, np.arange(params.n_imu))
+        out[:, 0], out[:, 1] = dp[0], dv[0]
     return out
 
 

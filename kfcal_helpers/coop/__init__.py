@@ -31,7 +31,7 @@ figures and mistakes.  matplotlib is imported only when a figure is drawn.
 from .. import registry
 from . import cli, figures, mistakes
 
-from .course import COURSE_LOG_VARIABLE, course_log, course_log_path
+from .course import COURSE_LOG_ROW_MEANS, COURSE_LOG_VARIABLE, course_log, course_log_path, is_course_log
 from .data import CoopLog, load_log, write_log_csv, write_log_mat
 from .filters import (
     FILTERS,
@@ -90,7 +90,7 @@ from .simulation import DEFAULT_LOG_SEED, Simulation, simulate, simulate_measure
 from .tables import format_matrix, format_number, format_table
 
 __all__ = [
-    "COURSE_LOG_VARIABLE", "course_log", "course_log_path", "CoopLog", "load_log", "write_log_csv", "write_log_mat",
+    "COURSE_LOG_VARIABLE", "COURSE_LOG_ROW_MEANS", "course_log", "course_log_path", "is_course_log", "CoopLog", "load_log", "write_log_csv", "write_log_mat",
     "FILTERS", "TUNED_Q_SCALE", "UKF_POINTS", "CoopEKF", "FilterResult", "FilterSetup", "QScaleFit", "SigmaPoints",
     "fit_q_scale", "make_ekf", "make_lkf", "make_ukf", "run", "run_ekf", "run_filter", "run_lkf", "run_ukf", "tuned_Q",
     "MEAS_ANGLES", "MEAS_LABELS", "N_MEAS", "N_STATES", "NOISE_MODELS", "STATE", "STATE_ANGLES", "STATE_LABELS",

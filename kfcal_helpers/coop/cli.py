@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 from ..output import dumps_json
-from ..validation import MAX_SEED, cli_float, cli_int, require_int, require_positive
+from ..validation import MAX_SEED, MIN_ALPHA, cli_float, cli_int, require_int, require_positive
 from .data import load_log
 from .filters import FILTERS, TUNED_Q_SCALE, fit_q_scale, log_summary, run_filter
 from .model import CoopParams
@@ -74,7 +74,7 @@ def add_parser(subparsers):
                    help="filter Q = S * Qtrue: a number from 1e-6 to 1e6, or 'auto' to fit S to the log by maximum "
                         "likelihood over a ladder (a fit, not a test; default: the filter's truth-model-tuned scale)")
     p.add_argument("--every", type=cli_int(1), default=1, metavar="M", help="use the measurements of every M-th step only")
-    p.add_argument("--alpha", type=cli_float(0, 0.5), default=0.05, help="significance of the chi-square tests (default 0.05)")
+    p.add_argument("--alpha", type=cli_float(MIN_ALPHA, 0.5, lower_open=False), default=0.05, help="significance of the chi-square tests (default 0.05)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(run=run)
     return p

@@ -11,14 +11,34 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
+
 from .data import CoopLog, load_log
 from .model import CoopParams
 from .simulation import DEFAULT_LOG_SEED, simulate
 
-__all__ = ["COURSE_LOG_VARIABLE", "course_log_path", "course_log"]
+__all__ = ["COURSE_LOG_VARIABLE", "COURSE_LOG_ROW_MEANS", "course_log_path", "course_log", "is_course_log"]
 
 #: the environment variable naming the course log (a CSV folder or a .mat file)
 COURSE_LOG_VARIABLE = "KFCAL_COURSE_LOG"
+
+
+#: mean of each measurement row of the course's log (bearing rad, range m, bearing rad, east m, north m, over the
+#: 1000 columns with a measurement): a fingerprint that tells the course's log from any other valid log
+COURSE_LOG_ROW_MEANS = (-0.016611491, 101.816714229, 1.571116849, 48.827709559, -0.911894946)
+
+
+def is_course_log(log: CoopLog, params: CoopParams | None = None) -> bool:
+    """True if ``log`` is the course's observation log: 1001 samples 0.1 s apart, the truth model's ``Qtrue``
+    and ``Rtrue`` (of ``params``, default the course's) and the row means :data:`COURSE_LOG_ROW_MEANS`
+    (to 1e-6).  The notebooks check the numbers they quote for the course log only on it."""
+    p = params if params is not None else CoopParams()
+    if not isinstance(log, CoopLog) or log.n_samples != 1001 or abs(log.dt - 0.1) > 1e-9:
+        return False
+    if not (np.allclose(log.Qtrue, p.Qtrue) and np.allclose(log.Rtrue, p.Rtrue)):
+        return False
+    has = ~np.isnan(log.y).all(axis=1)
+    return bool(np.allclose(log.y[has].mean(axis=0), COURSE_LOG_ROW_MEANS, rtol=0, atol=1e-6))
 
 
 def course_log_path() -> Path | None:

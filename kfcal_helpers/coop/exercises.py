@@ -976,3 +976,100 @@ def check_lost_directions(answer, *, window: int = 10) -> Feedback:
 EXERCISES = {e.id: e for e in (STEP_MAP, MEASUREMENT, BEARING_ROW, F_DT, OBS_RANK, MC_BOUNDS, LKF_INNOVATION,
                                EKF_RESIDUAL, EKF_F, MERWE_WEIGHTS, CIRCULAR_MEAN, LOG_NIS_BOUNDS, SPARSE_NIS_BOUNDS,
                                SUBSET_NIS_BOUNDS, LOST_DIRECTIONS)}
+
+
+# ---------------------------------------------------------------------------
+# 08.3: the measurement function written by the student, for one state or a stack of states
+def _measure_fn_cases():
+    """State arrays of 08.3: one state (6,) and a stack (4, 6) whose UGV-to-UAV bearing lies near +-pi
+    (before and after subtracting the heading), with headings near +-pi and the UAV west of the UGV."""
+    one = np.array([5.0, -3.0, 2.5, -20.0, -10.0, -1.0])
+    stack = np.array([
+        [10.0, 0.0, 1.5708, -60.0, 0.0, -1.5708],       # the nominal start: UAV due west
+        [0.0, 0.0, -3.0, -40.0, 1.0, 3.1],              # bearing direction near pi, heading near -pi
+        [2.0, 1.0, 3.0, -30.0, -1.5, -2.9],             # direction near -pi
+        [-5.0, 4.0, 0.3, 35.0, 60.0, 2.0],              # UAV north-east: no wrapping needed
+    ])
+    return [(one,), (stack,)]
+
+
+def _measure_fn_variant(x, mistake):
+    """The measurement function with one mistake (wrong answers of 08.3), for x (..., 6)."""
+    x = np.asarray(x, dtype=float)
+    dxi, deta = x[..., 3] - x[..., 0], x[..., 4] - x[..., 1]
+    direction = np.arctan2(deta, dxi)
+    back = np.arctan2(-deta, -dxi)
+    th_g, th_a = x[..., 2], x[..., 5]
+    if mistake == "atan2_order":
+        direction, back = np.arctan2(dxi, deta), np.arctan2(-dxi, -deta)
+    elif mistake == "swapped_heading":
+        th_g, th_a = th_a, th_g
+    elif mistake == "same_direction":
+        back = direction
+    b1, b2 = direction - th_g, back - th_a
+    if mistake != "no_wrap":
+        b1, b2 = wrap_angle(b1), wrap_angle(b2)
+    if mistake == "degrees":
+        b1, b2 = np.degrees(b1), np.degrees(b2)
+    rng = np.hypot(dxi, deta)
+    gps_e, gps_n = (x[..., 0], x[..., 1]) if mistake == "ugv_gps" else (x[..., 3], x[..., 4])
+    return np.stack([b1, rng, b2, gps_e, gps_n], axis=-1)
+
+
+MEASURE_FUNCTION = Exercise(
+    "08.3",
+    praise="h(x) for one state and for a stack of states: bearings wrapped, each from its own vehicle's heading",
+    hint="compare with the measurement formula: two bearings (each minus its own vehicle's heading, wrapped), the range, the UAV's east and north",
+    hints={
+        "atan2_order": "np.arctan2 takes the north difference first: np.arctan2(d_eta, d_xi)",
+        "no_wrap": "the bearings leave (-pi, pi]: wrap them after subtracting the heading",
+        "swapped_heading": "each bearing is measured from its own vehicle's heading: the UGV's bearing minus theta_g (x[..., 2]), the UAV's minus theta_a (x[..., 5])",
+        "same_direction": "the UAV looks back at the UGV: its line of sight is the reverse direction, np.arctan2(-d_eta, -d_xi)",
+        "degrees": "the bearings are in radians, not degrees",
+        "ugv_gps": "the GPS is on the UAV: the last two entries are the UAV's position x[..., 3], x[..., 4]",
+        "one_state": "your function works for one state only: index the last axis (x[..., 0], not x[0]) so that a stack (K, 6) gives (K, 5)",
+    },
+)
+
+
+def check_measure_function(fn) -> Feedback:
+    """08.3: the student's ``fn(x)`` -> noise-free measurement ``h(x)``, called on one state (6,) and on
+    a stack of four states (4, 6); right: the shape (..., 5) of :func:`~kfcal_helpers.coop.model.measure`,
+    [bearing UGV->UAV, range, bearing UAV->UGV, xi_a, eta_a] (rad, m, rad, m, m), bearings wrapped to
+    (-pi, pi] (-pi for pi is accepted: the same angle)."""
+    E = MEASURE_FUNCTION
+    cases = _measure_fn_cases()
+    convert = lambda a: np.array(a, dtype=float)  # noqa: E731
+    outs, fb = call_student(E.id, fn, cases[:1], "measure_fn(x)", convert=convert)
+    if fb is not None:
+        return fb
+    more, fb = call_student(E.id, fn, cases[1:], "measure_fn(x)", convert=convert)
+    if fb is not None:   # right size for one state, but a stack fails (x[3] of four rows, say)
+        single = as_array(outs[0])
+        return E.mistake("one_state") if fb.answered and single is not None and single.size == N_MEAS else fb
+    outs = outs + more
+    arrays = [as_array(o) for o in outs]
+    if any(a is None for a in arrays):
+        bad = next(o for o, a in zip(outs, arrays) if a is None)
+        return E.feedback(False, f"your function must return numbers, shape (..., 5), it returned {type(bad).__name__}")
+    shapes = [(N_MEAS,), (len(cases[1][0]), N_MEAS)]
+    if arrays[0].size == N_MEAS and arrays[1].shape != shapes[1]:
+        return E.mistake("one_state")
+    if any(a.size != int(np.prod(s)) for a, s in zip(arrays, shapes)):
+        return E.feedback(False, f"your function must return shape (5,) for one state and (4, 5) for four, "
+                                 f"it returned {arrays[0].shape} and {arrays[1].shape}")
+    if not all(np.all(np.isfinite(a)) for a in arrays):
+        return E.feedback(False, "your function returned NaN or inf")
+    answer = _pi_for_minus_pi(np.concatenate([a.reshape(-1, N_MEAS) for a in arrays]), MEAS_ANGLES)
+
+    def each(f):
+        return _pi_for_minus_pi(np.concatenate([np.reshape(f(c[0]), (-1, N_MEAS)) for c in cases]), MEAS_ANGLES)
+
+    expected = each(measure)
+    wrong = [(each(lambda x, m=m: _measure_fn_variant(x, m)), m) for m in
+             ("atan2_order", "no_wrap", "swapped_heading", "same_direction", "degrees", "ugv_gps")]
+    return E.judge(answer, expected, distinct_mistakes(wrong, expected, _FN_RTOL), rtol=_FN_RTOL, atol=_FN_ATOL)
+
+
+__all__.append("check_measure_function")
+EXERCISES[MEASURE_FUNCTION.id] = MEASURE_FUNCTION

@@ -39,12 +39,15 @@ from ..consistency import nees as _nees
 from ..consistency import nis as _nis
 from ..validation import require_choice, require_covariance, require_instance, require_positive, require_shape
 from .model import (
+    MAX_MEASUREMENT,
+    MAX_STEPS,
     N_MEAS,
     N_STATES,
     STATE,
     CoopParams,
     MeasurementModel,
     arc,
+    too_many_steps,
     jacobian_A,
     nominal_trajectory,
     require_indices,
@@ -59,6 +62,7 @@ __all__ = [
     "FilterResult",
     "tuned_Q",
     "FilterSetup",
+    "SETTINGS",
     "CoopEKF",
     "make_lkf",
     "make_ekf",
@@ -195,6 +199,10 @@ def measurement_subset(measurements) -> tuple[int, ...] | None:
     return None if idx == tuple(range(N_MEAS)) else idx
 
 
+#: the keyword settings of :meth:`FilterSetup.build` besides ``R`` and ``measurements`` (its fields)
+SETTINGS = ("Q", "x0", "P0", "points", "wrap_innovations", "subtract_nominal")
+
+
 @dataclass(frozen=True, eq=False)
 class FilterSetup:
     """Everything a filter run needs besides the measurements, validated on construction.
@@ -247,6 +255,10 @@ class FilterSetup:
         """A setup with the measurement model of ``R`` (5x5, default ``params.Rtrue``) restricted to the
         rows ``measurements`` of y (default all five; see :func:`measurement_subset`); the other
         settings (Q, x0, P0, points, wrap_innovations, subtract_nominal) as in the class."""
+        unknown = sorted(set(settings) - set(SETTINGS))
+        if unknown:
+            raise ValueError(f"{unknown[0]} is not a filter setting; the settings are "
+                             f"{', '.join(('R', 'measurements', *SETTINGS))}")
         p = require_instance("params", params, CoopParams, allow_none=True) or CoopParams()
         model = MeasurementModel(p.Rtrue if R is None else require_covariance("R", R, N_MEAS))
         idx = measurement_subset(measurements)
@@ -256,13 +268,20 @@ class FilterSetup:
 
 
 def _measurements(y) -> np.ndarray:
-    """Validate the measurements ``y`` (K, 5): rows all finite or all NaN (NaN: predict only)."""
+    """Validate the measurements ``y`` (K, 5): rows all finite or all NaN (NaN: predict only), values at
+    most MAX_MEASUREMENT (1e6 m or rad) in magnitude, at most MAX_STEPS rows."""
     y = require_shape("y", y, (None, N_MEAS))
     if y.shape[0] < 1:
         raise ValueError("y must hold at least one row")
+    if y.shape[0] > MAX_STEPS:
+        raise ValueError(too_many_steps("y", y.shape[0]))
     nan = np.isnan(y)
     if (nan.any(axis=1) & ~nan.all(axis=1)).any() or np.isinf(y).any():
         raise ValueError("y rows must be all finite or all NaN (a NaN row means predict only)")
+    largest = float(np.abs(y[~nan]).max(initial=0.0))
+    if largest > MAX_MEASUREMENT:
+        raise ValueError(f"y values must be at most {MAX_MEASUREMENT:g} in magnitude (m, rad; beyond it the "
+                         f"filters' squares overflow), got {largest:.3g}")
     return y
 
 
@@ -608,10 +627,12 @@ def fit_q_scale(filter: str, y, scales, params: CoopParams | None = None, *, alp
     scales = np.array([require_positive("scales", s) for s in np.atleast_1d(scales)], dtype=float)
     if scales.size == 0:
         raise ValueError("scales must hold at least one value")
-    results = [run_filter(filter, y, p, Q=s * p.Qtrue, **settings) for s in scales]
-    ll = np.array([r.log_likelihood() for r in results])
-    nis = np.array([r.time_average_nis() for r in results])
-    n = int(np.isfinite(results[0].nis).sum())
-    bounds = _chi2_bounds(len(results[0].measurements), n, alpha)
+    ll, nis = np.empty(scales.size), np.empty(scales.size)
+    for i, s in enumerate(scales):  # one run in memory at a time
+        r = run_filter(filter, y, p, Q=s * p.Qtrue, **settings)
+        ll[i], nis[i] = r.log_likelihood(), r.time_average_nis()
+        n, used = int(np.isfinite(r.nis).sum()), len(r.measurements)
+        del r
+    bounds = _chi2_bounds(used, n, alpha)
     return QScaleFit(filter, scales, ll, nis, bounds, float(scales[int(np.argmax(ll))]))
 

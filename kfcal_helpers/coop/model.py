@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..montecarlo import MEMORY_LIMIT
 from ..validation import require_covariance, require_int, require_positive, require_shape
 
 __all__ = [
@@ -32,6 +33,13 @@ __all__ = [
     "require_indices",
     "MEAS_LABELS",
     "NOISE_MODELS",
+    "MAX_MEASUREMENT",
+    "RUN_BYTES_PER_STEP",
+    "BASE_BYTES",
+    "MAX_STEPS",
+    "MAX_PARAMS_STEPS",
+    "run_bytes",
+    "too_many_steps",
     "CoopParams",
     "require_last_axis",
     "wrap_angle",
@@ -72,6 +80,38 @@ MEAS_LABELS = (r"bearing UGV$\to$UAV [rad]", "range [m]", r"bearing UAV$\to$UGV 
 #: (per-step state noise Q, a known mistake kept as a named variant)
 NOISE_MODELS = ("dt", "identity")
 
+#: largest magnitude accepted in measurements (m, rad): beyond it the filters' squares overflow
+MAX_MEASUREMENT = 1e6
+
+#: bytes one filter run keeps per step (float64 counts): the stored x_prior, x_post (6 + 6), P_prior,
+#: P_post (36 + 36), z_pred, y (5 + 5), S (25) and K (30); the result's NIS, NEES, t and the copies of
+#: y and S at the steps with a measurement (3 + 30); the log's t and y (6); the LKF's nominal states,
+#: F and H (6 + 36 + 30).  (Measured with ``coop --log``: 1475 bytes per step for the EKF and UKF,
+#: 2075 for the LKF.)
+RUN_BYTES_PER_STEP = 8 * (149 + 33 + 6 + 72)
+#: bytes of the interpreter with numpy, scipy, filterpy and this package loaded (about 100 MB measured)
+BASE_BYTES = 150e6
+#: the most steps (samples) a run may have: one filter run of them fits in the 500 MB memory limit
+#: (kfcal_helpers.montecarlo.MEMORY_LIMIT) after BASE_BYTES
+MAX_STEPS = int((MEMORY_LIMIT - BASE_BYTES) // RUN_BYTES_PER_STEP)
+
+
+#: the most steps a CoopParams may describe (duration / dt): beyond it the states of one run alone would
+#: take more than 48 GB, and the step count is no longer an exact integer in float arithmetic far beyond
+MAX_PARAMS_STEPS = 10**9
+
+
+def run_bytes(n_steps: int) -> float:
+    """Estimated peak memory (bytes) of one filter run over ``n_steps`` samples, interpreter included."""
+    return BASE_BYTES + RUN_BYTES_PER_STEP * float(n_steps)
+
+
+def too_many_steps(name: str, n_steps) -> str:
+    """The message refusing a run of ``n_steps`` samples (> MAX_STEPS), naming ``name``."""
+    return (f"{name}: {n_steps:.0f} steps, more than the {MAX_STEPS} allowed: one filter run of them would need "
+            f"about {run_bytes(n_steps) / 1e6:.0f} MB ({RUN_BYTES_PER_STEP} bytes per step), more than the "
+            f"{MEMORY_LIMIT / 1e6:.0f} MB memory limit; use fewer steps")
+
 
 def _diag(*values):
     return field(default_factory=lambda: np.diag(np.array(values, dtype=float)))
@@ -96,7 +136,9 @@ class CoopParams:
     every filter use the same ``Omega`` (:meth:`process_noise`).
     ``P0`` (6x6) is the covariance of the initial state about ``x0``: the truth-model
     tests draw the true initial state from N(x0, P0) and every filter starts at
-    (x0, P0).  Arrays are stored read-only.
+    (x0, P0).  Arrays are stored read-only.  ``duration / dt`` must be a whole number of steps, at most
+    :data:`MAX_PARAMS_STEPS` (1e9); runs refuse far fewer by their memory estimates (a filter run: more
+    than :data:`MAX_STEPS`; the Monte Carlo: its own estimate).
     """
 
     L: float = 0.5  #: UGV wheelbase, m
@@ -116,6 +158,9 @@ class CoopParams:
         for name in ("L", "dt", "duration"):
             object.__setattr__(self, name, require_positive(name, getattr(self, name)))
         steps = self.duration / self.dt
+        if not steps <= MAX_PARAMS_STEPS:  # also inf (dt = 5e-324)
+            raise ValueError(f"duration / dt must be at most {MAX_PARAMS_STEPS:.0e} steps, got {self.duration:g} s / "
+                             f"{self.dt:g} s = {steps:.3g} steps")
         if abs(steps - round(steps)) > 1e-9 * max(steps, 1.0) or round(steps) < 1:
             raise ValueError(f"duration must be a whole number (>= 1) of dt = {self.dt:g} s, got {self.duration:g} s")
         arrays = {

@@ -30,11 +30,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from .. import montecarlo as core
-from ..consistency import Check, chi2_bounds, inside_fraction
-from ..validation import require_instance, require_int, require_probability, require_seed
+from ..consistency import Check, chi2_bounds, inside_fraction, t_band
+from ..validation import require_instance, require_int, require_seed, require_significance
 from .batch import run_batch
 from .filters import FilterSetup
 from .model import N_MEAS, N_STATES, CoopParams
@@ -127,11 +126,10 @@ class MonteCarloResult:
         n_entries = self.errors[0].size + self.nees.shape[1] + int(has.sum())
         a_sim = self.alpha / n_entries
         mean, std = _mean_std(self.errors)
-        mean, sem = mean.ravel(), std.ravel() / np.sqrt(n)
-        zero = np.zeros_like(mean)
-        t_pt, t_sim = stats.t.ppf(1 - self.alpha / 2, n - 1), stats.t.ppf(1 - a_sim / 2, n - 1)
-        out = {"mean_error": Check("mean_error", "run mean of the error, per step and state", mean, zero,
-                                   -t_pt * sem, t_pt * sem, -t_sim * sem, t_sim * sem)}
+        mean, std = mean.ravel(), std.ravel()
+        half, sim_half = t_band(std, n, self.alpha), t_band(std, n, a_sim)
+        out = {"mean_error": Check("mean_error", "run mean of the error, per step and state", mean,
+                                   np.zeros_like(mean), -half, half, -sim_half, sim_half)}
         for name, dim, values in (("nees", N_STATES, self.nees_mean), ("nis", len(self.measurements), self.nis_mean[has])):
             lo, hi = chi2_bounds(dim, n, self.alpha)
             slo, shi = chi2_bounds(dim, n, a_sim)
@@ -202,7 +200,7 @@ class TruthModelExperiment:
         self.setup = require_instance("setup", setup, FilterSetup)
         self.n_runs = require_int("n_runs", n_runs, minimum=1)
         self.every = require_int("every", every, minimum=1)
-        self.alpha = require_probability("alpha", alpha)
+        self.alpha = require_significance("alpha", alpha)
         self.params = setup.params
 
     def chunk_size(self) -> int:
@@ -301,7 +299,7 @@ def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0,
     would need more than 500 MB (the per-run arrays: 112 kB per run of 1001 steps) or an hour.
     """
     n_runs = require_int("n_runs", n_runs, minimum=1)
-    alpha = require_probability("alpha", alpha)
+    alpha = require_significance("alpha", alpha)
     exp = _experiment(params, n_runs, filter, alpha, every, settings)
     desc = desc or f"{exp.setup.filter.upper()} truth-model test"
     return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=desc,
