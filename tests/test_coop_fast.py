@@ -140,6 +140,8 @@ def test_fast_stores_symmetric_covariances_and_nan_outside_the_rows_used(log):
     (lambda y: run_filter_fast("lkf", y), "filter"),
     (lambda y: run_filter_fast("ekf", y[:, :4]), "y"),
     (lambda y: run_filter_fast("ukf", np.where(np.arange(5) == 1, np.nan, y)), "y"),
+    (lambda y: run_filter_fast("ekf", y * np.where(np.arange(5) == 3, 1e6, 1.0)), "y values must be at most"),
+    (lambda y: run_filter_fast("ekf", y, bogus=1.0), "bogus"),
     (lambda y: run_filter_fast("ekf", y, measurements=(5,)), "measurements"),
     (lambda y: run_filter_fast("ukf", y, truth=np.zeros((3, 6))), "truth"),
     (lambda y: run_fast(y, FilterSetup("ekf")), None),

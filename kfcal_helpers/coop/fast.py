@@ -36,7 +36,7 @@ from ..consistency import nees as _nees
 from ..consistency import nis as _nis
 from ..validation import require_choice, require_instance, require_shape
 from .filters import FilterSetup, robust_sqrt
-from .model import MEAS_ANGLES, N_MEAS, N_STATES, STATE
+from .model import MAX_MEASUREMENT, MAX_STEPS, MEAS_ANGLES, N_MEAS, N_STATES, STATE, too_many_steps
 
 __all__ = ["FAST_FILTERS", "FastResult", "run_ekf_fast", "run_ukf_fast", "run_fast", "run_filter_fast"]
 
@@ -91,13 +91,20 @@ class FastResult:
 
 
 def _check_y(y) -> np.ndarray:
-    """The measurements ``y`` (K, 5): rows all finite or all NaN (NaN: predict only)."""
+    """The measurements ``y`` (K, 5), checked as ``run_filter`` checks them: rows all finite or all NaN
+    (NaN: predict only), values at most MAX_MEASUREMENT in magnitude, at most MAX_STEPS rows."""
     y = require_shape("y", y, (None, N_MEAS))
     if y.shape[0] < 1:
         raise ValueError("y must hold at least one row")
+    if y.shape[0] > MAX_STEPS:
+        raise ValueError(too_many_steps("y", y.shape[0]))
     nan = np.isnan(y)
     if (nan.any(axis=1) & ~nan.all(axis=1)).any() or np.isinf(y).any():
         raise ValueError("y rows must be all finite or all NaN (a NaN row means predict only)")
+    largest = float(np.abs(y[~nan]).max(initial=0.0))
+    if largest > MAX_MEASUREMENT:
+        raise ValueError(f"y values must be at most {MAX_MEASUREMENT:g} in magnitude (m, rad; beyond it the "
+                         f"filters' squares overflow), got {largest:.3g}")
     return y
 
 
