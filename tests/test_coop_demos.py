@@ -18,6 +18,7 @@ from kfcal_helpers.coop import (TUNED_Q_SCALE, CoopParams, jacobian_C, measure, 
 from kfcal_helpers.coop.demos import (LIVE_FIGSIZE, MEASUREMENT_NAMES, CoopDemoFigure, compute_coop_demo, coop_controls,
                                       draw_coop_demo)
 from kfcal_helpers.coop.exercises import EXERCISES, check_lost_directions, check_subset_nis_bounds
+from kfcal_helpers.coop.fast import run_filter_fast
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
 
 from demo_checks import check_render, fast_draw_is_full_draw, png_size
@@ -276,10 +277,10 @@ def test_a_failing_filter_draws_a_one_line_message(log, monkeypatch, error, says
     def fail(*args, **kwargs):
         if isinstance(error, Warning):
             warnings.warn(error)  # raised as an error inside a redraw, never shown
-            return run_filter(*args, **kwargs)
+            return run_filter_fast(*args, **kwargs)
         raise error
 
-    monkeypatch.setattr(demos, "run_filter", fail)
+    monkeypatch.setattr(demos, "run_filter_fast", fail)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no warning may escape the redraw
         live.controls["filter"].value = "ukf"

@@ -2,7 +2,8 @@
 figure it redraws.
 
 :func:`compute_coop_demo` runs the EKF or UKF on a log with ``Q = q_scale * Qtrue`` and a chosen
-subset of the five measurements, and tests the time-averaged NIS against its chi-square bounds
+subset of the five measurements (the lean single run of :mod:`~kfcal_helpers.coop.fast`, equal to
+filterpy's filters of :func:`~kfcal_helpers.coop.filters.run_filter` to rounding), and tests the time-averaged NIS against its chi-square bounds
 (dimension = number of measurements used); :class:`CoopDemoFigure` draws the six estimation errors
 with their +-2 sigma bounds, built once so that :meth:`~CoopDemoFigure.update` only replaces the
 data.  :func:`coop_controls` builds the controls; the shared :class:`kfcal_helpers.demos.LiveDemo`
@@ -19,7 +20,8 @@ from ..consistency import chi2_bounds
 from ..demos import CachedBackground, new_figure
 from ..validation import require_choice, require_instance, require_positive, require_probability
 from .data import CoopLog
-from .filters import TUNED_Q_SCALE, measurement_subset, run_filter
+from .fast import run_filter_fast
+from .filters import TUNED_Q_SCALE, measurement_subset
 from .model import N_MEAS, STATE_LABELS
 
 __all__ = ["COOP_DEMO_FILTERS", "MEASUREMENT_NAMES", "LIVE_FIGSIZE", "CoopDemo", "compute_coop_demo", "CoopDemoFigure",
@@ -109,7 +111,8 @@ def compute_coop_demo(log: CoopLog, filter: str = "ekf", q_scale: float | None =
     idx = measurement_subset(measurements)
     idx = tuple(range(N_MEAS)) if idx is None else idx
     p = log.params()
-    res = run_filter(filter, log.y, p, Q=q_scale * p.Qtrue, truth=log.truth, measurements=idx)
+    # the lean single run (kfcal_helpers.coop.fast), equal to filterpy's run_filter to rounding
+    res = run_filter_fast(filter, log.y, p, Q=q_scale * p.Qtrue, truth=log.truth, measurements=idx)
     has = np.isfinite(res.nis)
     n_nis = int(has.sum())
     if n_nis == 0:
@@ -179,7 +182,7 @@ def coop_controls() -> dict:
     """The cooperative-localization demo's controls (ipywidgets), by name: ``filter``
     (EKF/UKF toggle), ``q_scale`` (Q = q_scale Qtrue, log scale, default the EKF's truth-model-tuned scale)
     and one checkbox per measurement, ``m0`` .. ``m4`` (all ticked).  They update on release
-    (a UKF run takes a few tenths of a second)."""
+    (each release runs the filter once and redraws)."""
     import ipywidgets as w
 
     style = {"description_width": "120px"}
