@@ -789,13 +789,13 @@ def _nis_bounds_wrong(K, alpha, extra):
 
 LOG_NIS_BOUNDS = Exercise(
     "13.1",
-    praise="K = {K} updates, 5K degrees of freedom, divided by K",
+    praise="n_upd = {K} updates, 5 n_upd degrees of freedom, divided by n_upd",
     hints={
         "count_nan": "count only the steps that have a measurement: the first sample is NaN",
         "one_sided": "a two-sided test puts alpha/2 in each tail: use the alpha/2 and 1 - alpha/2 quantiles",
         "notebook_alpha": "those are the bounds at alpha = 0.05: this exercise uses alpha = 0.01",
-        "dof_K": "K steps of a 5-dimensional NIS give 5K degrees of freedom, not K",
-        "not_divided": "the bounds are for the time average: divide the chi-square quantiles by K",
+        "dof_K": "n_upd steps of a 5-dimensional NIS give 5 n_upd degrees of freedom, not n_upd",
+        "not_divided": "the bounds are for the time average: divide the chi-square quantiles by n_upd",
         "dim6": "the NIS has the dimension of the measurement, not of the state",
         "normal": "close, but that is the normal approximation: use the chi-square quantiles",
     },
@@ -824,12 +824,12 @@ def check_log_nis_bounds(answer, *, n_samples: int = LOG_SAMPLES, alpha: float =
 
 SPARSE_NIS_BOUNDS = Exercise(
     "13.2",
-    praise="K = {K} updates: fewer updates, wider bounds",
+    praise="n_upd = {K} updates: fewer updates, wider bounds",
     hints={
         "count_nan": "the first kept sample (t = 0) has no measurement: do not count it",
-        "all_steps": "only every 10th step has a measurement now: K counts the updates, not the steps of the log",
+        "all_steps": "only every 10th step has a measurement now: n_upd counts the updates, not the steps of the log",
         "one_sided": "a two-sided test puts alpha/2 in each tail: use the alpha/2 and 1 - alpha/2 quantiles",
-        "dof_K": "K steps of a 5-dimensional NIS give 5K degrees of freedom, not K",
+        "dof_K": "n_upd steps of a 5-dimensional NIS give 5 n_upd degrees of freedom, not n_upd",
         "dim6": "the NIS has the dimension of the measurement, not of the state",
     },
 )
