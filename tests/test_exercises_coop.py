@@ -262,6 +262,7 @@ def wrong_10_1():
         "order": right[:, ::-1],
         "normal": np.array([[n - z * math.sqrt(2 * n / N), n + z * math.sqrt(2 * n / N)] for n in (6, 5)]),
         "notebook_N": np.array([avg_bounds(6, 50, 0.05), avg_bounds(5, 50, 0.05)]),
+        "one_run": np.array([[chi2_ppf(0.025, n), chi2_ppf(0.975, n)] for n in (6, 5)]),   # chi2(n), not averaged
     }
 
 
@@ -356,6 +357,7 @@ def wrong_12_1():
         "alpha_not_squared": weights(a * (n + k) - n),
         "wc0_equals_wm0": weights(lam, extra=0.0),
         "wc0_alpha": weights(lam, extra=1 - a + b),
+        "wc0_beta_only": weights(lam, extra=b),   # the 1 - alpha^2 term left out
         "wi_lambda": weights(lam, wi=1 / (2 * lam)),
         "n_points": weights(a * a * (13 + k) - 13, n=13),
         "no_kappa": weights(a * a * n - n),

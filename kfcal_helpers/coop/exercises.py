@@ -457,6 +457,8 @@ MC_BOUNDS = Exercise(
         "order": "give the lower bound first, then the upper one",
         "normal": "close, but that is the normal approximation: use the chi-square quantiles",
         "notebook_N": "those are the bounds for the notebook's N = 50: use this exercise's number of runs",
+        "one_run": "those are the bounds of a single run: the average of N runs has N*n degrees of freedom (not n), "
+                   "and its quantiles are divided by N",
     },
 )
 
@@ -480,6 +482,8 @@ def check_mc_bounds(answer, *, n_runs: int = MC_RUNS, alpha: float = 0.05) -> Fe
              (np.array([chi2_average_bounds(N_STATES, N - 1, alpha), chi2_average_bounds(N_MEAS, N - 1, alpha)]),
               "N_minus_1"),
              (expected[:, ::-1], "order"),
+             (np.array([chi2_average_bounds(N_STATES, N, alpha, dof=N_STATES, divide_by=1),
+                        chi2_average_bounds(N_MEAS, N, alpha, dof=N_MEAS, divide_by=1)]), "one_run"),
              (np.array([_normal_bounds(N_STATES, N, alpha), _normal_bounds(N_MEAS, N, alpha)]), "normal")]
     if abs(alpha - 0.05) < 1e-12:  # the same with the usual 1.96
         pairs.append((np.array([_normal_bounds(N_STATES, N, alpha, 1.96), _normal_bounds(N_MEAS, N, alpha, 1.96)]),
@@ -685,6 +689,7 @@ MERWE_WEIGHTS = Exercise(
         "alpha_not_squared": "lambda uses alpha squared",
         "wc0_equals_wm0": "the covariance weight of the centre point has an extra term (1 - alpha^2 + beta)",
         "wc0_alpha": "the extra term of Wc0 uses alpha squared",
+        "wc0_beta_only": "the extra term of Wc0 is 1 - alpha^2 + beta, not beta alone",
         "wi_lambda": "the outer weights divide by 2 (n + lambda), not by 2 lambda",
         "n_points": "n is the state dimension (6), not the number of sigma points",
         "no_kappa": "kappa is missing from lambda",
@@ -713,6 +718,7 @@ def check_merwe_weights(answer, *, n: int = MERWE["n"], alpha: float = MERWE["al
         (_merwe(n, alpha, beta, kappa, lam=alpha * (n + kappa) - n), "alpha_not_squared"),
         (_merwe(n, alpha, beta, kappa, wc_extra=0.0), "wc0_equals_wm0"),
         (_merwe(n, alpha, beta, kappa, wc_extra=1 - alpha + beta), "wc0_alpha"),
+        (_merwe(n, alpha, beta, kappa, wc_extra=beta), "wc0_beta_only"),
         (_merwe(n, alpha, beta, kappa, wi_den=2 * lam), "wi_lambda"),
         (_merwe(2 * n + 1, alpha, beta, kappa), "n_points"),
         (_merwe(n, alpha, beta, 0.0), "no_kappa"),
