@@ -823,7 +823,7 @@ def check_simultaneous_nees_band(answer, *, n_runs: int = 1000, n_fixes: int = 1
 # ----------------------------------------------------------------------------------------
 _APPARENT_BIAS = Exercise(
     "07.1",
-    praise="the apparent bias is Δt/2 times the jerk, and grows with ω",
+    praise="the apparent bias is Δt/2 times ȧ, the rate of change of the acceleration, and grows with ω",
     hint="the apparent bias is the rate of change of the velocity mismatch (Δt/2)(a(t) - a(0))",
     hints={
         "velocity": "that is the velocity mismatch itself; the apparent bias is its rate of change",
