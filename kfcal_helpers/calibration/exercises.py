@@ -33,7 +33,7 @@ from ..exercises._core import (PLACEHOLDER, Exercise, Feedback, as_array, call_s
                                unanswered)
 from ..validation import (require_covariance, require_finite, require_instance, require_int, require_positive,
                           require_probability)
-from .batch_estimate import batch_conditioning_covariance
+from .batch_estimate import batch_conditioning
 from .error_model import error_state_model, phi_power
 from .filters import covariance_sequence
 from .montecarlo import CHECK_NAMES, run_monte_carlo
@@ -61,7 +61,7 @@ __all__ = [
     # 15 GPS outages
     "check_outage_mask", "check_outage_sigma",
     # 16 minimum variance
-    "check_batch_two_fixes", "check_smoothed_bias_sigma",
+    "check_batch_two_fixes", "BATCH_TWO_FIXES_DZ", "check_smoothed_bias_sigma",
     # 17 live demo
     "check_demo_first_fix_sigma", "check_demo_ratio_band",
     # the records and the reference computations the notebooks and tests use
@@ -823,7 +823,7 @@ def check_simultaneous_nees_band(answer, *, n_runs: int = 1000, n_fixes: int = 1
 # ----------------------------------------------------------------------------------------
 _APPARENT_BIAS = Exercise(
     "07.1",
-    praise="the apparent bias is Δt/2 times the jerk, and grows with ω",
+    praise="the apparent bias is Δt/2 times ȧ, the rate of change of the acceleration, and grows with ω",
     hint="the apparent bias is the rate of change of the velocity mismatch (Δt/2)(a(t) - a(0))",
     hints={
         "velocity": "that is the velocity mismatch itself; the apparent bias is its rate of change",
@@ -1022,20 +1022,22 @@ def check_outage_sigma(answer, *, P0=((0.04, 0.0, 0.0), (0.0, 1e-4, 0.0), (0.0, 
 # ----------------------------------------------------------------------------------------
 # 16 minimum variance
 # ----------------------------------------------------------------------------------------
-def _condition(Sxx, Sxz, Szz):
-    return Sxx - Sxz @ np.linalg.solve(Szz, Sxz.T)
-
+#: the data of exercise 16.1: dz_0 (row 0) and dz_1 (row 1), [position (m), velocity (m/s)]
+BATCH_TWO_FIXES_DZ = np.array([[3.0, -0.5], [2.5, -0.45]])
 
 _BATCH_TWO_FIXES = Exercise(
     "16.1",
-    praise="one Gaussian conditioning on both fixes gives the filter's P at 0.2 s",
-    hint="build Π_0, Π_1 and Cov(δx_1, δx_0) = Φ^40 Π_0, then Σ_zz (4×4), Σ_xz (3×4) and condition",
+    praise="one Gaussian conditioning on both fixes gives the filter's estimate at 0.2 s",
+    hint="build Π_0, Π_1 and Cov(δx_1, δx_0) = Φ^40 Π_0, then Σ_zz (4×4), Σ_xz (3×4), and the mean Σ_xz Σ_zz⁻¹ z "
+         "with z = [δz_0; δz_1]",
     hints={
         "only_last": "condition on BOTH fixes, δz_0 and δz_1 (Σ_zz is 4×4), not only on the last one",
         "no_v": "the measurements are noisy: Σ_zz = H C Hᵀ + I ⊗ V",
-        "sign": "conditioning reduces the covariance: Σ_xx MINUS Σ_xz Σ_zz⁻¹ Σ_zx",
-        "prior": "that is the covariance before the fix at 0.2 s is used (the filter's a priori P)",
-        "unconditioned": "that is Π_1, the covariance before any conditioning",
+        "sign": "the conditional mean ADDS the correction: μ + Σ_xz Σ_zz⁻¹ (z − Hμ)",
+        "prior": "that is the estimate before the fix at 0.2 s is used (the filter's a priori estimate, "
+                 "conditioned on δz_0 only)",
+        "unconditioned": "that is the prior mean μ_1 = 0, before any conditioning: condition on the data",
+        "swapped": "stack the data in the order of Σ_zz's blocks: z = [δz_0; δz_1], row 0 of dz_16_1 first",
         "no_q_sum": "close, but a difference of method: Π_1 lacks the process noise that the IMU steps between the "
                     "two fixes add (each step adds Q, carried on by Φ); propagate Π_0 step by step",
     },
@@ -1043,31 +1045,37 @@ _BATCH_TWO_FIXES = Exercise(
 
 
 def check_batch_two_fixes(answer) -> Feedback:
-    """Exercise 16.1: the covariance (3, 3) of δx(t_1) (t_1 = 0.2 s) given δz_0 and δz_1 by one
-    Gaussian conditioning, defaults."""
+    """Exercise 16.1: the conditional mean (3,) of δx(t_1) (t_1 = 0.2 s; m, m/s, m/s^2) given
+    δz_0 and δz_1 = the rows of :data:`BATCH_TWO_FIXES_DZ` by one Gaussian conditioning, defaults
+    (prior mean zero)."""
     params = CalibrationParams()
     m = error_state_model(params)
-    right = batch_conditioning_covariance(params, 1)
     H, V = m.H, m.V
+    z = BATCH_TWO_FIXES_DZ.reshape(-1)
     F = phi_power(params, params.steps_per_fix)
     Pi0 = m.M0
     Pi1 = _propagate(m.M0, params.steps_per_fix)
-    C10 = F @ Pi0
-    Sxz = np.hstack([C10 @ H.T, Pi1 @ H.T])
-    Czz = np.block([[H @ Pi0 @ H.T, H @ C10.T @ H.T], [H @ C10 @ H.T, H @ Pi1 @ H.T]])
-    wrong = [("only_last", _condition(Pi1, Pi1 @ H.T, H @ Pi1 @ H.T + V)),
-             ("sign", Pi1 + Sxz @ np.linalg.solve(Czz + np.kron(np.eye(2), V), Sxz.T)),
-             ("prior", covariance_sequence(params)[1][1]), ("unconditioned", Pi1)]
-    Pi1_no_q = F @ Pi0 @ F.T  # Φ^40 Π_0 Φ^40ᵀ without the sum of the 40 steps' process noise
-    Czz_no_q = np.block([[H @ Pi0 @ H.T, H @ C10.T @ H.T], [H @ C10 @ H.T, H @ Pi1_no_q @ H.T]])
-    wrong.append(("no_q_sum", _condition(Pi1_no_q, np.hstack([C10 @ H.T, Pi1_no_q @ H.T]),
-                                         Czz_no_q + np.kron(np.eye(2), V))))
+
+    def mean(Pi1, z, with_v=True):
+        C10 = F @ Pi0
+        Sxz = np.hstack([C10 @ H.T, Pi1 @ H.T])
+        Szz = np.block([[H @ Pi0 @ H.T, H @ C10.T @ H.T], [H @ C10 @ H.T, H @ Pi1 @ H.T]])
+        return Sxz @ np.linalg.solve(Szz + (np.kron(np.eye(2), V) if with_v else 0), z)
+
+    dz = np.zeros((params.n_gps, 2))
+    dz[:2] = BATCH_TWO_FIXES_DZ                  # batch_conditioning(params, 1, dz) reads rows 0 and 1 only
+    right = batch_conditioning(params, 1, dz)[0]
+    K0 = Pi0 @ H.T @ np.linalg.inv(H @ Pi0 @ H.T + V)
+    wrong = [("only_last", Pi1 @ H.T @ np.linalg.solve(H @ Pi1 @ H.T + V, BATCH_TWO_FIXES_DZ[1])),
+             ("sign", -right), ("prior", F @ K0 @ BATCH_TWO_FIXES_DZ[0]), ("unconditioned", np.zeros(3)),
+             ("swapped", mean(Pi1, BATCH_TWO_FIXES_DZ[::-1].reshape(-1))),
+             ("no_q_sum", mean(F @ Pi0 @ F.T, z))]  # Φ^40 Π_0 Φ^40ᵀ without the 40 steps' process noise
     with np.errstate(all="ignore"):
         try:
-            wrong.append(("no_v", _condition(Pi1, Sxz, Czz)))
+            wrong.append(("no_v", mean(Pi1, z, with_v=False)))
         except np.linalg.LinAlgError:  # singular without V: nobody gets that answer
             pass
-    return _numeric(_BATCH_TWO_FIXES, answer, right, wrong, rtol=1e-5, atol=1e-12)
+    return _numeric(_BATCH_TWO_FIXES, answer, right, wrong, rtol=1e-6, atol=1e-12)
 
 
 _SMOOTHED_BIAS_SIGMA = Exercise(
