@@ -1161,8 +1161,8 @@ _PHI02_COUPLING_CHANGE = Exercise(
         "squared": "the per-step change adds up once per step (it enters Phi^k linearly in k)",
         "fix_interval": "that is the change over one fix interval of the default 5 Hz GPS; the exercise asks for "
                         "a longer interval (work out how the change grows with k)",
-        "half": "a factor of 2: Phi'[0,2] - Phi[0,2] is +dt^2/2 - (-dt^2/2), the full dt^2, and it enters "
-                "(Phi'^k)[0,2] once per step",
+        "half": "off by a factor of 2: recompute the one-step difference Phi'[0,2] - Phi[0,2] from "
+                "Phi'[0,2] = +dt^2/2 and Phi[0,2] = -dt^2/2",
     },
 )
 
