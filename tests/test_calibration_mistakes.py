@@ -147,7 +147,8 @@ def test_check_14_2():
     right = k * P.dt**2
     assert check_phi02_coupling_change(right).correct
     for wrong, hint in ((-right, "sign"), (P.dt**2, "one IMU step"), (-(k * P.dt) ** 2 / 2, "coupling itself"),
-                        (k**2 * P.dt**2, "once per step"), (P.steps_per_fix * P.dt**2, "fix interval of the default")):
+                        (k**2 * P.dt**2, "once per step"), (P.steps_per_fix * P.dt**2, "fix interval of the default"),
+                        (k * P.dt**2 / 2, "a factor of 2")):
         fb = check_phi02_coupling_change(wrong)
         assert not fb.correct and hint in fb.message
     # at k = 40 the fix-interval value is the right answer, not a mistake

@@ -1169,6 +1169,8 @@ _PHI02_COUPLING_CHANGE = Exercise(
         "squared": "the per-step change adds up once per step (it enters Phi^k linearly in k)",
         "fix_interval": "that is the change over one fix interval of the default 5 Hz GPS; the exercise asks for "
                         "a longer interval (work out how the change grows with k)",
+        "half": "off by a factor of 2: recompute the one-step difference Phi'[0,2] - Phi[0,2] from "
+                "Phi'[0,2] = +dt^2/2 and Phi[0,2] = -dt^2/2",
     },
 )
 
@@ -1182,7 +1184,8 @@ def check_phi02_coupling_change(answer, *, steps: int = 200, params: Calibration
     dt = p.dt
     right = k * dt**2
     wrong = distinct_mistakes([(-right, "sign"), (dt**2, "one_step"), (-(k * dt) ** 2 / 2, "coupling"),
-                               (k**2 * dt**2, "squared"), (p.steps_per_fix * dt**2, "fix_interval")], right, 1e-6)
+                               (k**2 * dt**2, "squared"), (p.steps_per_fix * dt**2, "fix_interval"),
+                               (right / 2, "half")], right, 1e-6)
     return replace(ex, praise=f"the flipped sign changes the coupling by k dt^2 = {right:.0e} s^2 over k = {k} "
                               "steps").judge(answer, right, wrong, rtol=1e-6)
 

@@ -944,13 +944,13 @@ LOST_DIRECTIONS = Exercise(
     hint="build O as in the notebook's observability cell, with the rows of each subset, F the exact jacobian_step, and count 6 - rank",
     hints={
         "ranks": "those are ranks; the exercise asks how many directions are lost: 6 - rank",
-        "euler": "that is what the Euler F = I + ΔT A gives along this nominal: it is the derivative of the Euler step x + ΔT f(x), not of the arcs that generated the nominal, so it carries a rotation of the scene at x*_k to the rotation at the Euler point, which misses x*_{k+1} by O(ΔT²); one singular value is then small (here ~4e-7 of the largest) but not zero. Use the exact Jacobian of the one-step map, jacobian_step: is a rotation of everything visible to two relative bearings?",
+        "euler": "check which F you used: the exercise asks first for the exact Jacobian of the one-step map, jacobian_step, not the Euler F = I + ΔT A (that is the follow-up question); then compute 6 - rank again",
         "reversed": "right counts, wrong order: give them as [no bearings, no GPS north, bearings only]",
         "north_observable": "without the GPS north, move both vehicles north together: does any bearing, the range or the GPS east change?",
-        "north_both_lost": "the GPS east still pins a common east shift; only the north one is free: compute the rank rather than guess",
+        "north_both_lost": "for the subset without the GPS north, test the common shifts one at a time: which of the remaining rows of H change when both vehicles move east together, and which when they move north together? Then compute the rank",
         "bearings_observable": "with the bearings alone, move both vehicles by the same vector: does either bearing change?",
-        "bearings_scale_lost": "two bearings alone fix no distance at one sample, but the vehicles' known speeds over 10 samples fix the scale of the scene: compute the rank",
-        "no_bearings_lost": "with the range and the UAV's GPS, one sample puts the UGV on a circle, but its known motion over 10 samples pins it down: compute the rank",
+        "bearings_scale_lost": "O stacks 10 samples of a moving scene, not one snapshot: what the bearings cannot see at one sample is not what they cannot see over the window; compute the rank of the stacked O",
+        "no_bearings_lost": "for the subset without the bearings, count with the stacked O over all 10 samples, not from one sample's geometry: build O with rows (1, 3, 4) and compute 6 - rank",
     },
 )
 
