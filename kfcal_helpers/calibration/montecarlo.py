@@ -54,8 +54,9 @@ within the GPS period that starts at fix ``i``,
 ``e(t_i + k dt) = Phi_f^k e_i + (Phi^k - Phi_f^k) dx_i + l_k + d_k`` (``Phi_f`` the filter's model,
 ``Phi`` the true one, ``l_k`` the IMU noise integrated since the fix, ``d_k`` the deterministic mismatch of
 the analytic truth), so the batch filter keeps, per period, sums of products of a few per-realization
-numbers with the running sums of the IMU noise (no (n, n_imu, 3) array is formed), and the moments at
-every sample follow at the end.
+numbers with the IMU noise and, for periods of at most 64 IMU samples, the Gram matrix of the period's
+IMU noise (longer periods: sums of products with its running sums), never a (n, n_imu, 3) array; the
+moments at every sample follow at the end.
 """
 
 from __future__ import annotations
@@ -378,8 +379,12 @@ class _BetweenMoments:
     [y, 1]^T`` per period (n_gps, D, D), ``[y, 1] c`` per period and sample (n_gps, D, r; the same with
     ``b`` follows, as ``b_{ir+q} = B_i + C_i + sum_{q'<q} c_{ir+q'}``) and ``c^2, c b, b^2`` per sample
     (3, n_imu); the first two moments of ``e`` at every sample follow from them in :meth:`moments`.
-    Per chunk: two running sums and four sums of products over (n, n_imu) arrays, taken a few
-    realizations at a time; no (n, n_imu, 3) array.
+    Two forms of these sums (the same moments, to rounding): for GPS periods of at most
+    :data:`_GRAM_MAX_STEPS` samples, per period ``sum [y, 1] w`` (n_gps, D, r) and the Gram matrix of
+    the IMU noise ``sum w w^T`` (n_gps, r, r), batched BLAS products on views of the draws (:meth:`add_gram`;
+    the sums above follow in :meth:`running_sums`, as the running sums within a period are fixed
+    linear maps of its noise); for longer periods, two running sums and four sums of products over
+    (n, n_imu) arrays, a few realizations at a time (:meth:`add_running`).  No (n, n_imu, 3) array.
     """
 
     def __init__(self, n_gps: int, r: int, n_imu: int, n_vars: int, gram: bool | None = None):
@@ -405,24 +410,20 @@ class _BetweenMoments:
         """Add one chunk without running sums (short GPS periods): per period ``i``, ``sum [y, 1] w_{ir+q}``
         (n_gps, D, r) and the Gram matrix ``sum w_{ir+p} w_{ir+q}`` (n_gps, r, r), batched BLAS products
         on views of ``w``, :data:`_GRAM_ROWS` realizations at a time (small products: BLAS runs them on
-        the calling thread); ``C_i, B_i`` from the per-period sums ``sum_q w_{ir+q}`` and
-        ``sum_q (r - 1 - q) w_{ir+q}``.  The running sums within a period are fixed linear maps of its
-        ``w``, so :meth:`running_sums` forms their sums of products from these."""
+        the calling thread).  The running sums within a period are fixed linear maps of its ``w``, so
+        :meth:`running_sums` forms their sums of products from these.  ``C_i`` and ``B_i`` cancel from
+        ``e`` (the IMU noise since the fix is ``s = c - C_i`` and ``u = b + c/2 - B_i - (k + 1/2) C_i``,
+        and within the period ``c = C_i + (w L)``, ``b = B_i + (q + 1) C_i + (w L2)``), so this form
+        keeps them at zero: the same moments, without the large terms that cancel."""
         n, n_gps, r, n_imu = len(w), params.n_gps, params.steps_per_fix, params.n_imu
         nf, last = n_gps - 1, n_imu - (n_gps - 1) * r
         self.n += n
-        ramp = r - 1.0 - np.arange(r)
         for l0 in range(0, n, _GRAM_ROWS):
             rows = min(_GRAM_ROWS, n - l0)
             wr = w[l0:l0 + rows]
             periods = wr[:, : nf * r].reshape(rows, nf, r)  # a view: row-contiguous periods
-            y1 = np.zeros((rows, n_gps, y.shape[2] + 3))  # [y, C_i, B_i, 1]; C_0 = B_0 = 0
+            y1 = np.zeros((rows, n_gps, y.shape[2] + 3))  # [y, C_i, B_i, 1] with C_i = B_i = 0 (see above)
             y1[..., :-3] = y[l0:l0 + rows]
-            C, B = y1[..., -3], y1[..., -2]
-            np.cumsum(periods.sum(axis=2), axis=1, out=C[:, 1:])  # C_i = sum_{l < ir} w_l
-            u = np.einsum("nmq,q->nm", periods, ramp)  # u_m = sum_q (r - 1 - q) w_{mr+q}
-            u += r * C[:, :-1]  # B_i = sum_{m < i} (r C_m + u_m) = sum_{l < ir} (ir - 1 - l) w_l
-            np.cumsum(u, axis=1, out=B[:, 1:])
             y1[..., -1] = 1.0
             yT = np.ascontiguousarray(y1.transpose(1, 2, 0))  # (n_gps, D, rows)
             self.yy += yT @ yT.transpose(0, 2, 1)
