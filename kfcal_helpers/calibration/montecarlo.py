@@ -418,22 +418,26 @@ class _BetweenMoments:
         n, n_gps, r, n_imu = len(w), params.n_gps, params.steps_per_fix, params.n_imu
         nf, last = n_gps - 1, n_imu - (n_gps - 1) * r
         self.n += n
+        ny = y.shape[2]
+        cols = np.r_[0:ny, ny + 2]  # the columns [y, 1] of [y, C_i, B_i, 1]; C_i = B_i = 0 (see above)
+        yy, yw = np.zeros((n_gps, ny + 1, ny + 1)), np.zeros((n_gps, ny + 1, r))
         for l0 in range(0, n, _GRAM_ROWS):
             rows = min(_GRAM_ROWS, n - l0)
             wr = w[l0:l0 + rows]
             periods = wr[:, : nf * r].reshape(rows, nf, r)  # a view: row-contiguous periods
-            y1 = np.zeros((rows, n_gps, y.shape[2] + 3))  # [y, C_i, B_i, 1] with C_i = B_i = 0 (see above)
-            y1[..., :-3] = y[l0:l0 + rows]
-            y1[..., -1] = 1.0
-            yT = np.ascontiguousarray(y1.transpose(1, 2, 0))  # (n_gps, D, rows)
-            self.yy += yT @ yT.transpose(0, 2, 1)
+            yT = np.empty((n_gps, ny + 1, rows))  # [y, 1]
+            yT[:, :ny] = y[l0:l0 + rows].transpose(1, 2, 0)
+            yT[:, ny] = 1.0
+            yy += yT @ yT.transpose(0, 2, 1)
             if nf > 0:
                 blk = periods.transpose(1, 0, 2)  # (nf, rows, r), a view
-                self.yw[:nf] += yT[:nf] @ blk
+                yw[:nf] += yT[:nf] @ blk
                 self.ww[:nf] += blk.transpose(0, 2, 1) @ blk
             wl = wr[:, nf * r:]
-            self.yw[nf, :, :last] += yT[nf] @ wl
+            yw[nf, :, :last] += yT[nf] @ wl
             self.ww[nf, :last, :last] += wl.T @ wl
+        self.yy[:, cols[:, None], cols[None, :]] += yy
+        self.yw[:, cols] += yw
 
     def add_running(self, params: CalibrationParams, w, y):
         """Add one chunk: ``w`` (n, n_imu) its IMU noise (overwritten by its running sum), ``y``
