@@ -113,7 +113,7 @@ _PARTIAL_BYTES_PER_FIX2 = 72.0
 _STATS_BYTES_PER_FIX2 = 260.0
 _STATS_BYTES_PER_SAMPLE, _STATS_BYTES_PER_BLOCK_SAMPLE, _BLOCK_SAMPLES = 400.0, 700.0, 65536
 _POWERS_BYTES_PER_STEP = 700.0
-_ROWS = 32  #: realizations whose 200 Hz running sums are formed at a time (between_fixes, batch filter)
+_ROWS = 32  #: realizations whose 200 Hz running sums are formed at a time (between_fixes, batch filter, long periods)
 #: longest GPS period (IMU samples) whose 200 Hz sums are kept as per-period Gram matrices of the IMU
 #: noise (between_fixes, batch filter: 2 r flops per sample in BLAS instead of two running sums)
 _GRAM_MAX_STEPS = 64
