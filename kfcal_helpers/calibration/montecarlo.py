@@ -54,8 +54,9 @@ within the GPS period that starts at fix ``i``,
 ``e(t_i + k dt) = Phi_f^k e_i + (Phi^k - Phi_f^k) dx_i + l_k + d_k`` (``Phi_f`` the filter's model,
 ``Phi`` the true one, ``l_k`` the IMU noise integrated since the fix, ``d_k`` the deterministic mismatch of
 the analytic truth), so the batch filter keeps, per period, sums of products of a few per-realization
-numbers with the running sums of the IMU noise (no (n, n_imu, 3) array is formed), and the moments at
-every sample follow at the end.
+numbers with the IMU noise and, for periods of at most 64 IMU samples, the Gram matrix of the period's
+IMU noise (longer periods: sums of products with its running sums), never a (n, n_imu, 3) array; the
+moments at every sample follow at the end.
 """
 
 from __future__ import annotations
@@ -112,7 +113,11 @@ _PARTIAL_BYTES_PER_FIX2 = 72.0
 _STATS_BYTES_PER_FIX2 = 260.0
 _STATS_BYTES_PER_SAMPLE, _STATS_BYTES_PER_BLOCK_SAMPLE, _BLOCK_SAMPLES = 400.0, 700.0, 65536
 _POWERS_BYTES_PER_STEP = 700.0
-_ROWS = 32  #: realizations whose 200 Hz running sums are formed at a time (between_fixes, batch filter)
+_ROWS = 32  #: realizations whose 200 Hz running sums are formed at a time (between_fixes, batch filter, long periods)
+#: longest GPS period (IMU samples) whose 200 Hz sums are kept as per-period Gram matrices of the IMU
+#: noise (between_fixes, batch filter: 2 r flops per sample in BLAS instead of two running sums)
+_GRAM_MAX_STEPS = 64
+_GRAM_ROWS = 128  #: realizations per product in the Gram form (r x rows x r below OpenBLAS's threading size)
 _SECONDS_PER_SAMPLE = {"batch": 1.5e-7, "filterpy": 6e-6}
 _SECONDS_PER_FIX2 = 3e-6
 FILTERS = ("batch", "filterpy")  #: the filter codes run_monte_carlo can run
@@ -374,17 +379,67 @@ class _BetweenMoments:
     [y, 1]^T`` per period (n_gps, D, D), ``[y, 1] c`` per period and sample (n_gps, D, r; the same with
     ``b`` follows, as ``b_{ir+q} = B_i + C_i + sum_{q'<q} c_{ir+q'}``) and ``c^2, c b, b^2`` per sample
     (3, n_imu); the first two moments of ``e`` at every sample follow from them in :meth:`moments`.
-    Per chunk: two running sums and four sums of products over (n, n_imu) arrays, taken a few
-    realizations at a time; no (n, n_imu, 3) array.
+    Two forms of these sums (the same moments, to rounding): for GPS periods of at most
+    :data:`_GRAM_MAX_STEPS` samples, per period ``sum [y, 1] w`` (n_gps, D, r) and the Gram matrix of
+    the IMU noise ``sum w w^T`` (n_gps, r, r), batched BLAS products on views of the draws (:meth:`add_gram`;
+    the sums above follow in :meth:`running_sums`, as the running sums within a period are fixed
+    linear maps of its noise); for longer periods, two running sums and four sums of products over
+    (n, n_imu) arrays, a few realizations at a time (:meth:`add_running`).  No (n, n_imu, 3) array.
     """
 
-    def __init__(self, n_gps: int, r: int, n_imu: int, n_vars: int):
+    def __init__(self, n_gps: int, r: int, n_imu: int, n_vars: int, gram: bool | None = None):
         self.n = 0
+        self.gram = r <= _GRAM_MAX_STEPS if gram is None else bool(gram)
         self.yy = np.zeros((n_gps, n_vars + 1, n_vars + 1))
-        self.yc = np.zeros((n_gps, n_vars + 1, r))
-        self.ll = np.zeros((3, n_imu))
+        if self.gram:  # sum [y, 1] w and sum w w^T per period (see add_gram)
+            self.yw = np.zeros((n_gps, n_vars + 1, r))
+            self.ww = np.zeros((n_gps, r, r))
+        else:
+            self.yc = np.zeros((n_gps, n_vars + 1, r))
+            self.ll = np.zeros((3, n_imu))
 
     def add(self, params: CalibrationParams, w, y):
+        """Add one chunk: ``w`` (n, n_imu) its IMU noise (may be overwritten), ``y`` (n, n_gps, n_vars - 2)
+        its ``[e_post, (dx)]`` at the fixes (:meth:`add_gram` or :meth:`add_running`)."""
+        if self.gram:
+            self.add_gram(params, w, y)
+        else:
+            self.add_running(params, w, y)
+
+    def add_gram(self, params: CalibrationParams, w, y):
+        """Add one chunk without running sums (short GPS periods): per period ``i``, ``sum [y, 1] w_{ir+q}``
+        (n_gps, D, r) and the Gram matrix ``sum w_{ir+p} w_{ir+q}`` (n_gps, r, r), batched BLAS products
+        on views of ``w``, :data:`_GRAM_ROWS` realizations at a time (small products: BLAS runs them on
+        the calling thread).  The running sums within a period are fixed linear maps of its ``w``, so
+        :meth:`running_sums` forms their sums of products from these.  ``C_i`` and ``B_i`` cancel from
+        ``e`` (the IMU noise since the fix is ``s = c - C_i`` and ``u = b + c/2 - B_i - (k + 1/2) C_i``,
+        and within the period ``c = C_i + (w L)``, ``b = B_i + (q + 1) C_i + (w L2)``), so this form
+        keeps them at zero: the same moments, without the large terms that cancel."""
+        n, n_gps, r, n_imu = len(w), params.n_gps, params.steps_per_fix, params.n_imu
+        nf, last = n_gps - 1, n_imu - (n_gps - 1) * r
+        self.n += n
+        ny = y.shape[2]
+        cols = np.r_[0:ny, ny + 2]  # the columns [y, 1] of [y, C_i, B_i, 1]; C_i = B_i = 0 (see above)
+        yy, yw = np.zeros((n_gps, ny + 1, ny + 1)), np.zeros((n_gps, ny + 1, r))
+        for l0 in range(0, n, _GRAM_ROWS):
+            rows = min(_GRAM_ROWS, n - l0)
+            wr = w[l0:l0 + rows]
+            periods = wr[:, : nf * r].reshape(rows, nf, r)  # a view: row-contiguous periods
+            yT = np.empty((n_gps, ny + 1, rows))  # [y, 1]
+            yT[:, :ny] = y[l0:l0 + rows].transpose(1, 2, 0)
+            yT[:, ny] = 1.0
+            yy += yT @ yT.transpose(0, 2, 1)
+            if nf > 0:
+                blk = periods.transpose(1, 0, 2)  # (nf, rows, r), a view
+                yw[:nf] += yT[:nf] @ blk
+                self.ww[:nf] += blk.transpose(0, 2, 1) @ blk
+            wl = wr[:, nf * r:]
+            yw[nf, :, :last] += yT[nf] @ wl
+            self.ww[nf, :last, :last] += wl.T @ wl
+        self.yy[:, cols[:, None], cols[None, :]] += yy
+        self.yw[:, cols] += yw
+
+    def add_running(self, params: CalibrationParams, w, y):
         """Add one chunk: ``w`` (n, n_imu) its IMU noise (overwritten by its running sum), ``y``
         (n, n_gps, n_vars - 2) its ``[e_post, (dx)]`` at the fixes.  The realizations are taken
         :data:`_ROWS` at a time, so that each one's running sums are still in the cache when they are
@@ -417,8 +472,39 @@ class _BetweenMoments:
     def combine(self, other: "_BetweenMoments"):
         self.n += other.n
         self.yy += other.yy
-        self.yc += other.yc
-        self.ll += other.ll
+        if self.gram:
+            self.yw += other.yw
+            self.ww += other.ww
+        else:
+            self.yc += other.yc
+            self.ll += other.ll
+
+    def running_sums(self, params: CalibrationParams):
+        """``(yc, ll)`` of the running-sum form (see the class docstring), from the Gram form's sums:
+        within period ``i``, ``c_{ir+q} = C_i + (w L)_q`` and ``b_{ir+q} = B_i + (q + 1) C_i + (w L2)_q``
+        with ``L_pq = [p <= q]`` and ``L2_pq = max(q - p, 0)``."""
+        if not self.gram:
+            return self.yc, self.ll
+        n_imu, r = params.n_imu, params.steps_per_fix
+        nv = self.yy.shape[1] - 1
+        ic, ib = nv - 2, nv - 1  # the columns C_i, B_i of [y, 1]
+        p, q = np.arange(r)[:, None], np.arange(r)[None, :]
+        L = (p <= q).astype(float)
+        L2 = np.maximum(q - p, 0).astype(float)
+        yy, W = self.yy, self.ww
+        ywL, ywL2 = self.yw @ L, self.yw @ L2  # (n_gps, D, r): sum [y, 1] (w L), sum [y, 1] (w L2)
+        yc = yy[:, :, ic, None] + ywL
+        k1 = np.arange(1, r + 1, dtype=float)  # q + 1
+        cC, cB, bB = yy[:, ic, ic, None], yy[:, ic, ib, None], yy[:, ib, ib, None]
+        WL, WL2 = W @ L, W @ L2
+        lcl = np.einsum("pq,ipq->iq", L, WL)  # diag(L^T W L): sum (w L)_q^2
+        lcb = np.einsum("pq,ipq->iq", L, WL2)  # diag(L^T W L2)
+        lbb = np.einsum("pq,ipq->iq", L2, WL2)  # diag(L2^T W L2)
+        cc = cC + 2 * ywL[:, ic] + lcl
+        cb = (cB + k1 * cC) + ywL2[:, ic] + (ywL[:, ib] + k1 * ywL[:, ic]) + lcb
+        bb = (bB + 2 * k1 * cB + k1 * k1 * cC) + 2 * (ywL2[:, ib] + k1 * ywL2[:, ic]) + lbb
+        ll = np.stack([cc, cb, bb]).reshape(3, -1)[:, :n_imu]
+        return yc, ll
 
     def moments(self, setup: "_Setup"):
         """``(sum e, sum e e^T)`` over realizations at every IMU sample, (n_imu, 3) and (n_imu, 3, 3)."""
@@ -429,8 +515,9 @@ class _BetweenMoments:
         N = self.n
         E1 = np.empty((n_gps * r, 3))
         E2 = np.empty((n_gps * r, 3, 3))
+        yc_all, ll_j = self.running_sums(params)
         ll = np.zeros((3, n_gps * r))
-        ll[:, 1:n_imu] = self.ll[:, : n_imu - 1]  # sample J reads the running sums at J - 1
+        ll[:, 1:n_imu] = ll_j[:, : n_imu - 1]  # sample J reads the running sums at J - 1
         ll = ll.reshape(3, n_gps, r)
         step = max(1, _BLOCK_SAMPLES // r)  # periods at a time: temporaries of at most 65536 + r samples
         for i0 in range(0, n_gps, step):
@@ -439,7 +526,7 @@ class _BetweenMoments:
             A1 = np.einsum("kad,id->ika", G, yy[:, :nv, nv])
             A2 = (G[None] @ yy[:, None, :nv, :nv]) @ np.swapaxes(G, 1, 2)[None]
             if r > 1:  # M (c, b) at the samples k >= 1 (column k - 1 of the period)
-                Yc = self.yc[i0:i1, :, : r - 1]  # (periods, D, r - 1)
+                Yc = yc_all[i0:i1, :, : r - 1]  # (periods, D, r - 1)
                 # b_{ir+q} = B_i + C_i + sum_{q' < q} c_{ir+q'}, and C_i, B_i are columns of y
                 Yb = np.empty_like(Yc)
                 Yb[..., 0] = 0.0
@@ -554,7 +641,15 @@ class CalibrationExperiment:
         if self.filter == "filterpy":
             return 96.0 * p.n_imu
         d = 9 if self.given_model is not None else 6  # [e_post, (dx), C_i, B_i, 1]
-        return 8.0 * (p.n_gps * d * d + d * p.n_gps * p.steps_per_fix + 3 * p.n_imu)
+        r = p.steps_per_fix
+        per_sample = r * r * p.n_gps if r <= _GRAM_MAX_STEPS else 3 * p.n_imu  # the Gram matrices, or ll
+        return 8.0 * (p.n_gps * d * d + d * p.n_gps * r + per_sample)
+
+    def _gram_bytes(self) -> float:
+        """One (n_gps, r, r) array of the Gram form of the 200 Hz sums (0 when it is not used)."""
+        p = self.params
+        use = self.between and self.filter == "batch" and p.steps_per_fix <= _GRAM_MAX_STEPS
+        return 8.0 * p.n_gps * p.steps_per_fix**2 if use else 0.0
 
     def fixed_bytes(self, n_runs: int) -> float:
         """The interpreter, the filter's covariances and the sums of the whole run."""
@@ -567,7 +662,8 @@ class CalibrationExperiment:
         p = self.params
         per_sample = _BYTES_PER_SAMPLE + (_BETWEEN_BYTES_PER_SAMPLE[self.filter] if self.between else 0.0)
         return (size * (per_sample * p.n_imu + _BYTES_PER_FIX * p.n_gps)
-                + _PARTIAL_BYTES_PER_FIX2 * p.n_gps**2 + self._between_sums_bytes())
+                + _PARTIAL_BYTES_PER_FIX2 * p.n_gps**2 + self._between_sums_bytes()
+                + self._gram_bytes())  # a product before it is added
 
     def final_bytes(self, n_runs: int) -> float:
         """The statistics of the checks at the end (the pairwise residual statistics; with
@@ -579,7 +675,8 @@ class CalibrationExperiment:
         end = _STATS_BYTES_PER_FIX2 * p.n_gps**2
         if self.between:
             end += (_STATS_BYTES_PER_SAMPLE * p.n_imu
-                    + _STATS_BYTES_PER_BLOCK_SAMPLE * min(p.n_imu, _BLOCK_SAMPLES + r))
+                    + _STATS_BYTES_PER_BLOCK_SAMPLE * min(p.n_imu, _BLOCK_SAMPLES + r)
+                    + 2 * self._gram_bytes())  # W L and W L2 (running_sums)
         return max(start, end)
 
     def seconds(self, n_runs: int) -> float:
