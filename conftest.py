@@ -72,11 +72,36 @@ SHARED_SCOPES = {
 }
 
 
+#: the files that take one worker longest (a browser, a site build, notebook runs, child processes), handed
+#: out first, so that no worker is left alone with one of them at the end (xdist's own order, by the
+#: number of tests in a file, would hand them out last)
+SLOW_FIRST = (
+    "tests/test_site.py",
+    "tests/test_browser_demos.py",
+    "tests/test_notebook13_modes.py",
+    "tests/test_calibration_memory.py",
+    "tests/test_fuzz_cli.py",
+    "tests/test_install.py",
+    "tests/test_coop_memory.py",
+    "tests/test_figures.py",
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    """The files of :data:`SLOW_FIRST` first, in that order; every other item keeps its place (a stable
+    sort: the cells of a notebook stay in order)."""
+    rank = {name: i for i, name in enumerate(SLOW_FIRST)}
+    items.sort(key=lambda item: rank.get(item.nodeid.split("::")[0], len(rank)))
+
+
 def pytest_xdist_make_scheduler(config, log):
-    """``--dist loadfile`` with the files of :data:`SHARED_SCOPES` joined into one work unit each."""
+    """``--dist loadfile`` with the files of :data:`SHARED_SCOPES` joined into one work unit each, handed
+    out in collection order (:data:`SLOW_FIRST` first)."""
     if config.getvalue("dist") != "loadfile":
         return None
     from xdist.scheduler import LoadFileScheduling
+
+    config.option.loadscopereorder = False
 
     class SharedFixtureScheduling(LoadFileScheduling):
         def _split_scope(self, nodeid):
