@@ -35,8 +35,8 @@ from scipy.linalg import lapack
 from ..consistency import nees as _nees
 from ..consistency import nis as _nis
 from ..validation import require_choice, require_instance, require_shape
-from .filters import FilterSetup, robust_sqrt
-from .model import MAX_MEASUREMENT, MAX_STEPS, MEAS_ANGLES, N_MEAS, N_STATES, STATE, too_many_steps
+from .filters import EstimateViews, FilterSetup, check_measurements, robust_sqrt
+from .model import MEAS_ANGLES, N_MEAS, N_STATES, STATE
 
 __all__ = ["FAST_FILTERS", "FastResult", "run_ekf_fast", "run_ukf_fast", "run_fast", "run_filter_fast"]
 
@@ -48,7 +48,7 @@ _TWO_PI = 2.0 * math.pi
 
 
 @dataclass(frozen=True, eq=False)
-class FastResult:
+class FastResult(EstimateViews):
     """One lean filter run over K samples (filterpy's names where they apply).
 
     filter : "ekf" or "ukf"; t : (K,) s; measurements : the rows of y used
@@ -69,43 +69,6 @@ class FastResult:
     nis: np.ndarray
     nees: np.ndarray | None
     measurements: tuple
-
-    @property
-    def x(self) -> np.ndarray:
-        """The estimate at every step, (K, 6): ``x_post``."""
-        return self.x_post
-
-    @property
-    def P(self) -> np.ndarray:
-        """Its covariance, (K, 6, 6): ``P_post``."""
-        return self.P_post
-
-    @property
-    def sigma2(self) -> np.ndarray:
-        """Two-sigma bounds ``2 sqrt(diag P)``, shape (K, 6)."""
-        return 2.0 * np.sqrt(np.diagonal(self.P, axis1=-2, axis2=-1))
-
-    def errors(self, truth) -> np.ndarray:
-        """Estimation errors ``truth - x`` with the headings wrapped, shape (K, 6)."""
-        return STATE.residual(truth, self.x)
-
-
-def _check_y(y) -> np.ndarray:
-    """The measurements ``y`` (K, 5), checked as ``run_filter`` checks them: rows all finite or all NaN
-    (NaN: predict only), values at most MAX_MEASUREMENT in magnitude, at most MAX_STEPS rows."""
-    y = require_shape("y", y, (None, N_MEAS))
-    if y.shape[0] < 1:
-        raise ValueError("y must hold at least one row")
-    if y.shape[0] > MAX_STEPS:
-        raise ValueError(too_many_steps("y", y.shape[0]))
-    nan = np.isnan(y)
-    if (nan.any(axis=1) & ~nan.all(axis=1)).any() or np.isinf(y).any():
-        raise ValueError("y rows must be all finite or all NaN (a NaN row means predict only)")
-    largest = float(np.abs(y[~nan]).max(initial=0.0))
-    if largest > MAX_MEASUREMENT:
-        raise ValueError(f"y values must be at most {MAX_MEASUREMENT:g} in magnitude (m, rad; beyond it the "
-                         f"filters' squares overflow), got {largest:.3g}")
-    return y
 
 
 def _arc_constants(p):
@@ -188,7 +151,7 @@ def run_ekf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
     filterpy's Joseph update ``P = (I - K H) P (I - K H)^T + K R K^T``, headings wrapped.
     """
     s = _setup(setup, "ekf")
-    y = _check_y(y)
+    y = check_measurements(y)
     p, model = s.params, s.measurement
     K = y.shape[0]
     rows = model.rows
@@ -315,7 +278,7 @@ def run_ukf_fast(y, setup: FilterSetup, truth=None) -> FastResult:
     position give the bearing of ``arctan2(0, 0) = 0`` here (filterpy's h raises).
     """
     s = _setup(setup, "ukf")
-    y = _check_y(y)
+    y = check_measurements(y)
     p, model, pts = s.params, s.measurement, s.points
     K = y.shape[0]
     rows = list(model.rows)

@@ -60,6 +60,8 @@ __all__ = [
     "UKF_POINTS",
     "SigmaPoints",
     "FilterResult",
+    "EstimateViews",
+    "check_measurements",
     "tuned_Q",
     "FilterSetup",
     "SETTINGS",
@@ -118,8 +120,33 @@ def tuned_Q(filter: str, params: CoopParams | None = None) -> np.ndarray:
     return TUNED_Q_SCALE[filter] * p.Qtrue
 
 
+class EstimateViews:
+    """What a filter run's result derives from its ``x_post`` (K, 6) and ``P_post`` (K, 6, 6): ``x``, ``P``,
+    ``sigma2`` and ``errors(truth)`` (shared by :class:`FilterResult` and the lean results of
+    :mod:`~kfcal_helpers.coop.fast`)."""
+
+    @property
+    def x(self) -> np.ndarray:
+        """The estimate at every step, (K, 6): ``x_post``."""
+        return self.x_post
+
+    @property
+    def P(self) -> np.ndarray:
+        """Its covariance, (K, 6, 6): ``P_post``."""
+        return self.P_post
+
+    @property
+    def sigma2(self) -> np.ndarray:
+        """Two-sigma bounds ``2 sqrt(diag P)``, shape (K, 6)."""
+        return 2.0 * np.sqrt(np.diagonal(self.P, axis1=-2, axis2=-1))
+
+    def errors(self, truth) -> np.ndarray:
+        """Estimation errors ``truth - x`` with the headings wrapped, shape (K, 6)."""
+        return STATE.residual(truth, self.x)
+
+
 @dataclass(frozen=True, eq=False)
-class FilterResult:
+class FilterResult(EstimateViews):
     """Output of one filter run over K samples (filterpy's names).
 
     Attributes
@@ -153,25 +180,6 @@ class FilterResult:
     nis: np.ndarray
     nees: np.ndarray | None = None
     measurements: tuple = tuple(range(N_MEAS))
-
-    @property
-    def x(self) -> np.ndarray:
-        """The estimate at every step, (K, 6): ``x_post``."""
-        return self.x_post
-
-    @property
-    def P(self) -> np.ndarray:
-        """Its covariance, (K, 6, 6): ``P_post``."""
-        return self.P_post
-
-    @property
-    def sigma2(self) -> np.ndarray:
-        """Two-sigma bounds ``2 sqrt(diag P)``, shape (K, 6)."""
-        return 2.0 * np.sqrt(np.diagonal(self.P, axis1=-2, axis2=-1))
-
-    def errors(self, truth) -> np.ndarray:
-        """Estimation errors ``truth - x`` with the headings wrapped, shape (K, 6)."""
-        return STATE.residual(truth, self.x)
 
     def time_average_nis(self) -> float:
         """Mean NIS over the steps that had a measurement."""
@@ -267,7 +275,7 @@ class FilterSetup:
         return cls(filter, p, measurement=model, **settings)
 
 
-def _measurements(y) -> np.ndarray:
+def check_measurements(y) -> np.ndarray:
     """Validate the measurements ``y`` (K, 5): rows all finite or all NaN (NaN: predict only), values at
     most MAX_MEASUREMENT (1e6 m or rad) in magnitude, at most MAX_STEPS rows."""
     y = require_shape("y", y, (None, N_MEAS))
@@ -347,7 +355,7 @@ def run_lkf(y, setup: FilterSetup | None = None, truth=None) -> FilterResult:
     With ``setup.subtract_nominal=False`` a known mistake (notebook 14): the innovation
     ``y - H dx-`` without the nominal measurement ``y*`` subtracted.
     """
-    y = _measurements(y)
+    y = check_measurements(y)
     s = _setup(setup, "lkf")
     p, model, K = s.params, s.measurement, y.shape[0]
     xnom = nominal_trajectory(p, K)
@@ -426,7 +434,7 @@ def run_ekf(y, setup: FilterSetup | None = None, truth=None) -> FilterResult:
     With ``setup.wrap_innovations=False`` filterpy's default ``residual=np.subtract``: only to
     demonstrate the pitfall (bearing innovations jump by 2 pi across +-pi).
     """
-    y = _measurements(y)
+    y = check_measurements(y)
     s = _setup(setup, "ekf")
     model, K = s.measurement, y.shape[0]
     ekf = make_ekf(s)
@@ -515,7 +523,7 @@ def make_ukf(setup: FilterSetup) -> UnscentedKalmanFilter:
 
 def run_ukf(y, setup: FilterSetup | None = None, truth=None) -> FilterResult:
     """Unscented KF on measurements ``y`` (K, 5) (see :func:`run_filter`)."""
-    y = _measurements(y)
+    y = check_measurements(y)
     s = _setup(setup, "ukf")
     model, K = s.measurement, y.shape[0]
     ukf = make_ukf(s)
