@@ -2,7 +2,9 @@
 
 The sub-commands come from the problem list (:data:`kfcal_helpers.problems.PROBLEMS`): each problem's
 ``add_cli(subparsers)`` adds its command, whose parser sets ``run(args) -> int``; ``figures`` (the
-lecture figures of every problem) is the shared command of :mod:`kfcal_helpers.figures`.
+lecture figures of every problem) is the shared command of :mod:`kfcal_helpers.figures`, and
+``assignments`` (lessons and solutions rendered from ``notebooks/source``, an nbgrader course) that of
+:mod:`kfcal_helpers.assignments`.
 
 Whatever a user types, the command ends in one of these ways, never in a traceback:
 
@@ -64,12 +66,14 @@ class OneLineParser(argparse.ArgumentParser):
 def _build_parser() -> argparse.ArgumentParser:
     from . import figures as figures_cli
     from . import problems
+    from .assignments import add_parser as add_assignments_parser
 
     parser = OneLineParser(prog=PROG, description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     for problem in problems.PROBLEMS:
         problem.add_cli(sub)
     figures_cli.add_parser(sub)
+    add_assignments_parser(sub)
     return parser
 
 

@@ -144,3 +144,16 @@ def test_a_placeholder_left_in_one_entry_is_named():
     for answer in ([1.0, None], [..., 2.0]):
         fb = EX.judge(answer, [1.0, 2.0])
         assert not fb.correct and fb.answered and "placeholder" in fb.message, str(fb)
+
+
+def test_assert_correct_prints_on_success_and_raises_the_hint_otherwise(capsys):
+    right, wrong, unanswered = EX.judge(2.0, 2.0), EX.judge(-2.0, 2.0, [(-2.0, "sign")]), EX.judge(..., 2.0)
+    assert right.assert_correct() is None
+    out = capsys.readouterr()
+    assert out.out == f"{right}\n" and out.err == ""   # stderr would cost credit in nbgrader
+    for fb in (wrong, unanswered):
+        with pytest.raises(AssertionError) as info:
+            fb.assert_correct()
+        assert str(info.value) == str(fb) and fb.message in str(info.value)
+    assert "check the sign" in str(EX.judge(-2.0, 2.0, [(-2.0, "sign")]))
+    assert capsys.readouterr().err == ""

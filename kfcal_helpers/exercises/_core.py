@@ -69,6 +69,14 @@ class Feedback:
     def __bool__(self) -> bool:
         return self.correct
 
+    def assert_correct(self) -> None:
+        """For graded notebooks (nbgrader's test cells): print the one line to stdout and return when the
+        answer is right; otherwise raise ``AssertionError(str(self))``, so that the hint is the last line of
+        the traceback a grader shows.  Nothing is written to stderr."""
+        if not self.correct:
+            raise AssertionError(str(self))
+        print(str(self))
+
 
 @dataclass(frozen=True)
 class Exercise:

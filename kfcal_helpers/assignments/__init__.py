@@ -1,0 +1,54 @@
+"""Graded assignments from one source per lesson.
+
+Each lesson ``notebooks/NN_name.ipynb`` and its worked solutions ``notebooks/solutions/NN_name.ipynb``
+are rendered from one source notebook, ``notebooks/source/NN_name.ipynb`` (kept without outputs),
+which holds the lesson, each exercise's placeholder and its worked answer, and its points.  A cell's
+``metadata["kfcal"]`` says where it goes:
+
+=========================================================  ==============================================
+``kfcal`` metadata                                         the cell is
+=========================================================  ==============================================
+absent                                                     a lesson cell (lesson only)
+``{"role": "exercise"}``                                   in both (the exercise's text, or another
+                                                           cell the two share)
+``{"role": "solution"}``                                   in the solutions only (header, setup,
+                                                           "**Solution.**" text, extra code, closing line)
+``{"role": "answer", "exercise": "03.2", "points": 1}``    an answer cell (code), in both
+=========================================================  ==============================================
+
+An answer cell's lines between ``### BEGIN PLACEHOLDER`` and ``### END PLACEHOLDER`` are the lesson's
+placeholder; those between ``### BEGIN SOLUTION`` and ``### END SOLUTION`` (nbgrader's markers) the worked
+answer; the lines outside both are common.  A placeholder region is followed directly by a solution
+region; markers may be indented inside a function; the last line is the check call
+``check_xxx(answer_NN_k)``::
+
+    def euler_truth(a, p0, v0, dt):
+        \"\"\"Euler truth: arrays p (m) and v (m/s), one entry per sample of a (m/s^2).\"\"\"
+        ### BEGIN PLACEHOLDER
+        ...   # replace ... with your code and return p, v
+        ### END PLACEHOLDER
+        ### BEGIN SOLUTION
+        p, v = ...
+        return p, v
+        ### END SOLUTION
+
+    answer_01_3 = euler_truth
+    check_euler_truth(answer_01_3)
+
+``python -m kfcal_helpers assignments`` writes the lessons and solutions that differ from what their
+source renders (``--execute`` runs those whose code changed), ``--check`` lists them (exit 1), and
+``--course DIR`` makes an nbgrader course of every lesson with exercises (:mod:`._nbgrader`; needs
+``environment-instructors.txt``).  Only the standard library and nbformat are needed to render;
+nbclient to execute; nbgrader is imported only for ``--course``.
+"""
+
+from ._cli import add_parser
+from ._nbgrader import COURSE_ID, INSTRUCTORS_FILE, check_modules, generate, nbgrader_notebook, write_course
+from ._source import (MARKERS, ROLES, AnswerCell, answer_cells, parse_answer, render, render_lesson, render_solutions,
+                      validate)
+from ._sync import COURSE_LOG_LESSONS, NOTEBOOKS, Target, comparable, differing, equal, execute, merge, sync, targets
+
+__all__ = ["ROLES", "MARKERS", "AnswerCell", "parse_answer", "validate", "answer_cells", "render", "render_lesson",
+           "render_solutions", "NOTEBOOKS", "COURSE_LOG_LESSONS", "Target", "targets", "comparable", "equal",
+           "differing", "merge", "sync", "execute", "COURSE_ID", "INSTRUCTORS_FILE", "check_modules",
+           "nbgrader_notebook", "write_course", "generate", "add_parser"]

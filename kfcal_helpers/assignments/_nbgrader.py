@@ -1,0 +1,176 @@
+"""An nbgrader course made from the source notebooks.
+
+Each lesson with exercises becomes one assignment, named after the notebook's stem, whose source
+notebook is the lesson with every answer cell turned into two nbgrader cells:
+
+* an *autograded answer* cell: the answer cell's common and placeholder lines and its solution
+  region (between ``### BEGIN SOLUTION`` and ``### END SOLUTION``, which nbgrader clears in the
+  release, leaving our placeholder); the check call is removed;
+* an *autograder tests* cell worth the exercise's points, which imports the check and runs
+  ``check_xxx(answer).assert_correct()``: silent on success, an ``AssertionError`` whose message is the
+  check's one-line hint otherwise (nbgrader shows it in the feedback).
+
+The sentence that links to the worked solutions ("Worked solutions: [...](...)") is dropped.
+nbgrader itself (``environment-instructors.txt``) is imported only by :func:`generate`.
+"""
+
+from __future__ import annotations
+
+import ast
+import copy
+import os
+import re
+import shutil
+from pathlib import Path
+
+from ._source import BEGIN_SOLUTION, END_SOLUTION, parse_answer, validate
+
+__all__ = ["COURSE_ID", "INSTRUCTORS_FILE", "SOLUTIONS_LINK", "check_modules", "nbgrader_notebook", "write_course",
+           "generate", "nbgrader_missing"]
+
+COURSE_ID = "kfcal"
+#: the pip requirements file that adds nbgrader to environment.txt
+INSTRUCTORS_FILE = "environment-instructors.txt"
+#: the sentence of the exercises' introduction that links to the worked solutions
+SOLUTIONS_LINK = re.compile(r"\s*Worked\s+solutions:\s*\[[^\]]*\]\([^)]*\)\.?")
+_PACKAGE = Path(__file__).resolve().parents[1]
+
+CONFIG = '''"""nbgrader configuration of the course made by python -m kfcal_helpers assignments --course."""
+import os
+
+os.environ.setdefault("KFCAL_QUIET", "1")   # no progress bars in the autograded notebooks
+
+c = get_config()  # noqa: F821 (defined by nbgrader when it reads this file)
+c.CourseDirectory.course_id = {course_id!r}
+c.CourseDirectory.root = os.path.dirname(os.path.abspath(__file__)) if "__file__" in globals() else os.getcwd()
+# the release keeps the lesson's own placeholder ("answer = ...   # replace ... with your answer")
+c.ClearSolutions.code_stub = {{"python": ""}}
+# some lessons run short Monte Carlo runs: allow a cell a few minutes
+c.Execute.timeout = 600
+'''
+
+
+def check_modules(package: Path = _PACKAGE) -> dict[str, str]:
+    """``{check function name: module}`` for every ``check_*`` defined in ``kfcal_helpers/*/exercises.py``
+    (read with :mod:`ast`, nothing imported)."""
+    out = {}
+    for path in sorted(package.glob("*/exercises.py")):
+        module = f"{package.name}.{path.parent.name}.exercises"
+        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+            if isinstance(node, ast.FunctionDef) and node.name.startswith("check_"):
+                out[node.name] = module
+    return out
+
+
+def _grade_id(exercise: str) -> str:
+    return "ex_" + exercise.replace(".", "_")
+
+
+def nbgrader_notebook(nb, modules: dict[str, str] | None = None):
+    """The nbgrader source notebook of the source notebook ``nb`` (see the module's docstring)."""
+    import nbformat
+
+    validate(nb)
+    modules = check_modules() if modules is None else modules
+    out = copy.deepcopy(nb)
+    out["metadata"].pop("kfcal", None)
+    cells = []
+    for index, cell in enumerate(nb["cells"]):
+        role = cell.get("metadata", {}).get("kfcal", {}).get("role")
+        if role == "solution":
+            continue
+        new = copy.deepcopy(cell)
+        new["metadata"].pop("kfcal", None)
+        if role != "answer":
+            if new["cell_type"] == "markdown":
+                new["source"] = SOLUTIONS_LINK.sub("", new["source"])
+            cells.append(new)
+            continue
+        answer = parse_answer(index, cell)
+        if answer.check not in modules:
+            raise ValueError(f"source cell {index} (id {cell.get('id')}): no check named {answer.check} in "
+                             f"kfcal_helpers/*/exercises.py")
+        lines = []
+        for region, text in answer.lines[:-1]:
+            if region == "marker" and text.strip() not in (BEGIN_SOLUTION, END_SOLUTION):
+                continue
+            lines.append(text)
+        while lines and not lines[-1].strip():
+            lines.pop()
+        grade_id = _grade_id(answer.exercise)
+        new["source"] = "\n".join(lines)
+        new["metadata"]["nbgrader"] = {"grade": False, "grade_id": grade_id, "locked": False, "schema_version": 3,
+                                       "solution": True, "task": False}
+        cells.append(new)
+        test = nbformat.v4.new_code_cell(
+            f"# the check of exercise {answer.exercise} ({answer.points:g} point{'s' if answer.points != 1 else ''}):"
+            f" silent when right, its hint otherwise\n"
+            f"from {modules[answer.check]} import {answer.check}\n"
+            f"{answer.check}({answer.answer}).assert_correct()")
+        test["id"] = (cell.get("id") or grade_id)[:40] + "-check"
+        test["metadata"]["nbgrader"] = {"grade": True, "grade_id": grade_id + "_check", "locked": True,
+                                        "points": answer.points, "schema_version": 3, "solution": False,
+                                        "task": False}
+        cells.append(test)
+    out["cells"] = cells
+    return out
+
+
+def nbgrader_missing() -> str | None:
+    """None when nbgrader can be imported, else the one-line reason (naming :data:`INSTRUCTORS_FILE`)."""
+    try:
+        import nbgrader  # noqa: F401
+    except ImportError:
+        return f"nbgrader is not installed: pip install -r {INSTRUCTORS_FILE} (the instructors' pins)"
+    return None
+
+
+def write_course(course: Path, sources: list[Path]) -> list[str]:
+    """Write ``course/nbgrader_config.py`` and ``course/source/<stem>/<stem>.ipynb`` for every source
+    with an answer cell; returns the assignment names.  A source notebook already in the course is
+    replaced; nothing else there is touched."""
+    import nbformat
+
+    course = Path(course)
+    modules = check_modules()
+    names = []
+    made = []
+    for path in sources:
+        nb = nbformat.read(str(path), as_version=4)
+        if not any(c.get("metadata", {}).get("kfcal", {}).get("role") == "answer" for c in nb.cells):
+            continue
+        try:
+            made.append((path.stem, nbgrader_notebook(nb, modules)))
+        except ValueError as exc:
+            raise ValueError(f"{path.name}: {exc}") from None
+    course.mkdir(parents=True, exist_ok=True)
+    (course / "nbgrader_config.py").write_text(CONFIG.format(course_id=COURSE_ID), encoding="utf-8")
+    for name, nb in made:
+        folder = course / "source" / name
+        folder.mkdir(parents=True, exist_ok=True)
+        nbformat.write(nb, str(folder / f"{name}.ipynb"))
+        names.append(name)
+    return names
+
+
+def generate(course: Path, names: list[str], log=print) -> None:
+    """Run nbgrader's ``generate_assignment`` for each assignment in ``names`` (into ``course/release/``),
+    adding it to the course's gradebook.  Needs nbgrader (:func:`nbgrader_missing`)."""
+    from nbgrader.apps import NbGraderAPI
+    from traitlets.config import Config
+
+    course = Path(course).resolve()
+    config = Config()
+    config.CourseDirectory.root = str(course)
+    config.CourseDirectory.course_id = COURSE_ID
+    config.ClearSolutions.code_stub = {"python": ""}
+    api = NbGraderAPI(config=config)
+    for name in names:
+        release = course / "release" / name
+        if release.exists():
+            shutil.rmtree(release)
+        result = api.generate_assignment(name, force=True, create=True)
+        if not result.get("success"):
+            error = " ".join(str(result.get("error") or result.get("log") or "unknown error").split())
+            raise ValueError(f"nbgrader generate_assignment {name} failed: {error[-300:]}")
+        log(f"released {os.path.relpath(release)}")

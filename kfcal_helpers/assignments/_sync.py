@@ -1,0 +1,159 @@
+"""Keeping ``notebooks/`` and ``notebooks/solutions/`` equal to what ``notebooks/source/`` renders.
+
+Two notebooks are *equal* when they have the same notebook metadata (``widgets``, the widget state
+saved by an execution, left out) and the same cells: cell type, source and metadata (``execution``
+left out).  Outputs, execution counts and cell ids are not compared.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from ._source import render
+
+__all__ = ["NOTEBOOKS", "COURSE_LOG_LESSONS", "Target", "targets", "comparable", "equal", "differing", "merge",
+           "sync", "execute"]
+
+#: the repository's notebooks folder (lessons; ``solutions/`` and ``source/`` below it)
+NOTEBOOKS = Path(__file__).resolve().parents[2] / "notebooks"
+#: the lessons committed executed with the course log (``KFCAL_COURSE_LOG``); all others run without it
+COURSE_LOG_LESSONS = frozenset({"10_coop_lkf", "14_mistakes_and_checks"})
+
+
+@dataclass(frozen=True)
+class Target:
+    """One rendered notebook: ``which`` ("lesson" or "solutions") of ``source``, kept at ``path``."""
+
+    source: Path
+    which: str
+    path: Path
+
+
+def _read(path: Path):
+    import nbformat
+
+    return nbformat.read(str(path), as_version=4)
+
+
+def targets(notebooks: Path = NOTEBOOKS) -> list[Target]:
+    """Every notebook rendered from ``notebooks/source/*.ipynb``: each source's lesson, and its
+    solutions when it has an answer cell."""
+    notebooks = Path(notebooks)
+    out = []
+    for source in sorted((notebooks / "source").glob("*.ipynb")):
+        out.append(Target(source, "lesson", notebooks / source.name))
+        nb = _read(source)
+        if any(c.get("metadata", {}).get("kfcal", {}).get("role") == "answer" for c in nb.cells):
+            out.append(Target(source, "solutions", notebooks / "solutions" / source.name))
+    return out
+
+
+def comparable(nb):
+    """What equality compares: the notebook metadata without ``widgets`` and, per cell, its type,
+    source and metadata without ``execution``."""
+    meta = {k: v for k, v in nb["metadata"].items() if k != "widgets"}
+    cells = [(c["cell_type"], c["source"], {k: v for k, v in c.get("metadata", {}).items() if k != "execution"})
+             for c in nb["cells"]]
+    return meta, cells
+
+
+def equal(a, b) -> bool:
+    """True when the notebooks ``a`` and ``b`` are equal in the sense of this module."""
+    return comparable(a) == comparable(b)
+
+
+def differing(notebooks: Path = NOTEBOOKS) -> list[Path]:
+    """The rendered notebooks that are missing or differ from what their source renders."""
+    out = []
+    for target in targets(notebooks):
+        wanted = render(_read(target.source), target.which)
+        if not target.path.exists() or not equal(wanted, _read(target.path)):
+            out.append(target.path)
+    return out
+
+
+def merge(rendered, old):
+    """``rendered`` with what ``old`` (the notebook it replaces, or None) already has for unchanged
+    cells: a cell equal to an old one (type and source, in order) keeps its id, and a code cell its
+    outputs, execution count and ``execution`` metadata.  Returns ``(notebook, n_new_code_cells)``."""
+    out = copy.deepcopy(rendered)
+    pool = list(old["cells"]) if old is not None else []
+    new_code = 0
+    for cell in out["cells"]:
+        match = next((i for i, c in enumerate(pool) if c["cell_type"] == cell["cell_type"]
+                      and c["source"] == cell["source"]), None)
+        if match is None:
+            new_code += cell["cell_type"] == "code"
+            continue
+        prev = pool.pop(match)
+        if "id" in prev:
+            cell["id"] = prev["id"]
+        if cell["cell_type"] == "code":
+            cell["outputs"], cell["execution_count"] = prev.get("outputs", []), prev.get("execution_count")
+            if "execution" in prev.get("metadata", {}):
+                cell["metadata"]["execution"] = prev["metadata"]["execution"]
+    if old is not None and "widgets" in old["metadata"] and new_code == 0:
+        out["metadata"]["widgets"] = old["metadata"]["widgets"]
+    return out, new_code
+
+
+def execute(nb, path: Path, timeout: int = 1200):
+    """Run ``nb`` (which lives at ``path``) top to bottom in a fresh kernel, in ``path``'s folder, with
+    ``KFCAL_QUIET=1``; the course log (``KFCAL_COURSE_LOG``) only for :data:`COURSE_LOG_LESSONS`."""
+    from nbclient import NotebookClient
+
+    saved = dict(os.environ)
+    os.environ["KFCAL_QUIET"] = "1"
+    if not (path.parent.name != "solutions" and path.stem in COURSE_LOG_LESSONS):
+        os.environ.pop("KFCAL_COURSE_LOG", None)
+    try:
+        NotebookClient(nb, timeout=timeout, kernel_name="python3",
+                       resources={"metadata": {"path": str(path.parent)}}).execute()
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+    return nb
+
+
+def _write(nb, path: Path) -> None:
+    import nbformat
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        nbformat.write(nb, tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def sync(notebooks: Path = NOTEBOOKS, *, run: bool = False, log=print) -> list[tuple[Path, str]]:
+    """Re-render every lesson and solutions notebook from its source; write only those that differ
+    (the others are left untouched, byte for byte).  Unchanged cells keep their outputs (:func:`merge`);
+    a notebook with new or changed code cells is executed when ``run`` (:func:`execute`), else written
+    with those cells unexecuted.  Returns ``[(path, state)]`` of the written notebooks, state
+    ``"executed"``, ``"needs execution"`` or ``"written"`` (markdown changes only)."""
+    written = []
+    for target in targets(notebooks):
+        wanted = render(_read(target.source), target.which)
+        old = _read(target.path) if target.path.exists() else None
+        if old is not None and equal(wanted, old):
+            continue
+        nb, new_code = merge(wanted, old)
+        state = "written"
+        if new_code:
+            if run:
+                log(f"executing {target.path.relative_to(notebooks.parent)} ...")
+                execute(nb, target.path)
+                state = "executed"
+            else:
+                state = "needs execution"
+        _write(nb, target.path)
+        written.append((target.path, state))
+    return written
