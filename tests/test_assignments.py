@@ -1,0 +1,268 @@
+"""notebooks/source renders exactly the committed lessons and solutions; the renderer's roles and
+regions, its errors, the nbgrader conversion, and the ``assignments`` command's errors."""
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import nbformat
+import pytest
+
+from kfcal_helpers import assignments
+from kfcal_helpers.assignments import (differing, nbgrader_notebook, parse_answer, render_lesson, render_solutions,
+                                       sync)
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOKS = ROOT / "notebooks"
+
+
+def cli(*args, cwd=ROOT):
+    return subprocess.run([sys.executable, "-m", "kfcal_helpers", "assignments", *map(str, args)], cwd=cwd,
+                          capture_output=True, text=True, timeout=300)
+
+
+def one_error_line(proc):
+    lines = proc.stderr.splitlines()
+    assert proc.returncode == 2, (proc.returncode, proc.stderr)
+    assert len(lines) == 1 and lines[0].startswith("python -m kfcal_helpers assignments: error: "), proc.stderr
+    assert "Traceback" not in proc.stderr
+    return lines[0]
+
+
+def source(*cells):
+    nb = nbformat.v4.new_notebook()
+    nb.metadata = {"kernelspec": {"name": "python3", "display_name": "Python 3", "language": "python"}}
+    for kind, text, meta in cells:
+        cell = (nbformat.v4.new_code_cell if kind == "code" else nbformat.v4.new_markdown_cell)(text)
+        if meta is not None:
+            cell.metadata["kfcal"] = meta
+        nb.cells.append(cell)
+    return nb
+
+
+ANSWER = {"role": "answer", "exercise": "99.1", "points": 2}
+FUNCTION = """def f(x):
+    \"\"\"twice x\"\"\"
+    ### BEGIN PLACEHOLDER
+    ...   # replace ... with your code
+    ### END PLACEHOLDER
+    ### BEGIN SOLUTION
+    y = 2 * x
+    return y
+    ### END SOLUTION
+
+answer_99_1 = f
+check_double(answer_99_1)"""
+
+
+def tiny():
+    return source(("markdown", "# Lesson\n\nWorked solutions: [solutions/99_x.ipynb](solutions/99_x.ipynb).", None),
+                  ("code", "x = 1", None),
+                  ("markdown", "# Solutions 99", {"role": "solution"}),
+                  ("markdown", "**Exercise 99.1 — double.** Write f.", {"role": "exercise"}),
+                  ("markdown", "**Solution.** Multiply.", {"role": "solution"}),
+                  ("code", FUNCTION, ANSWER),
+                  ("code", "assert f(2) == 4", {"role": "solution"}),
+                  ("markdown", "## Checks", None))
+
+
+# ------------------------------------------------------------------------------------------------
+# the committed notebooks and their sources
+# ------------------------------------------------------------------------------------------------
+def test_every_committed_lesson_and_solution_equals_what_its_source_renders():
+    names = sorted(p.name for p in (NOTEBOOKS / "source").glob("*.ipynb"))
+    assert names == sorted(p.name for p in NOTEBOOKS.glob("[0-9][0-9]*_*.ipynb"))   # one source per lesson
+    solved = [t.path.name for t in assignments.targets() if t.which == "solutions"]
+    assert solved == sorted(p.name for p in (NOTEBOOKS / "solutions").glob("*.ipynb"))
+    assert differing() == []
+    for path in (NOTEBOOKS / "source").glob("*.ipynb"):     # sources hold no outputs
+        nb = nbformat.read(path, 4)
+        assert not any(c.get("outputs") or c.get("execution_count") for c in nb.cells if c.cell_type == "code")
+
+
+@pytest.fixture
+def copy_01(tmp_path):
+    """notebooks/ of one lesson (01) in a temporary folder: source, lesson, solutions."""
+    name = "01_truth_model.ipynb"
+    (tmp_path / "source").mkdir()
+    (tmp_path / "solutions").mkdir()
+    for rel in (f"source/{name}", name, f"solutions/{name}"):
+        shutil.copy(NOTEBOOKS / rel, tmp_path / rel)
+    return tmp_path, name
+
+
+def test_a_lesson_edited_without_its_source_is_caught_and_rendered_back(copy_01):
+    folder, name = copy_01
+    assert differing(folder) == []
+    lesson = nbformat.read(folder / name, 4)
+    md = next(c for c in lesson.cells if c.cell_type == "markdown" and c.source.startswith("**Exercise 01.2"))
+    md.source += " Edited in the lesson only."
+    nbformat.write(lesson, folder / name)
+    assert differing(folder) == [folder / name]
+    proc = cli("--check", "--notebooks", folder)
+    assert proc.returncode == 1 and str(folder / name) in proc.stdout and proc.stderr == "", proc
+    solution_bytes = (folder / "solutions" / name).read_bytes()
+    written = sync(folder, log=lambda line: None)
+    assert written == [(folder / name, "written")]          # a markdown change: outputs kept, no execution
+    assert differing(folder) == []
+    again = nbformat.read(folder / name, 4)
+    before = nbformat.read(NOTEBOOKS / name, 4)
+    assert [c.get("outputs") for c in again.cells] == [c.get("outputs") for c in before.cells]
+    assert [c.id for c in again.cells] == [c.id for c in before.cells]
+    assert (folder / "solutions" / name).read_bytes() == solution_bytes   # unchanged: untouched
+    assert sync(folder, log=lambda line: None) == []
+
+
+def test_an_edited_solution_in_the_source_is_written_as_needing_execution(copy_01):
+    folder, name = copy_01
+    src = nbformat.read(folder / "source" / name, 4)
+    cell = next(c for c in src.cells if c.metadata.get("kfcal", {}).get("exercise") == "01.1")
+    cell.source = cell.source.replace("t_end = 10.0", "t_end = 10.0  # s")
+    nbformat.write(src, folder / "source" / name)
+    assert differing(folder) == [folder / "solutions" / name]    # the placeholder is unchanged
+    lesson_bytes = (folder / name).read_bytes()
+    assert sync(folder, log=lambda line: None) == [(folder / "solutions" / name, "needs execution")]
+    assert (folder / name).read_bytes() == lesson_bytes
+    solved = nbformat.read(folder / "solutions" / name, 4)
+    changed = next(c for c in solved.cells if "t_end = 10.0  # s" in c.source)
+    assert changed.outputs == [] and changed.execution_count is None
+
+
+# ------------------------------------------------------------------------------------------------
+# the renderer
+# ------------------------------------------------------------------------------------------------
+def test_roles_and_regions_render_the_lesson_and_the_solutions():
+    nb = tiny()
+    lesson, solved = render_lesson(nb), render_solutions(nb)
+    assert [c.source.split("\n")[0] for c in lesson.cells] == [
+        "# Lesson", "x = 1", "**Exercise 99.1 — double.** Write f.", "def f(x):", "## Checks"]
+    assert [c.source.split("\n")[0] for c in solved.cells] == [
+        "# Solutions 99", "**Exercise 99.1 — double.** Write f.", "**Solution.** Multiply.", "def f(x):",
+        "assert f(2) == 4"]
+    assert lesson.cells[3].source == ('def f(x):\n    """twice x"""\n    ...   # replace ... with your code\n\n'
+                                      'answer_99_1 = f\ncheck_double(answer_99_1)')
+    assert solved.cells[3].source == ('def f(x):\n    """twice x"""\n    y = 2 * x\n    return y\n\n'
+                                      'answer_99_1 = f\ncheck_double(answer_99_1)')
+    assert all("kfcal" not in c.metadata for c in lesson.cells + solved.cells)
+    assert [c.id for c in lesson.cells] == [nb.cells[i].id for i in (0, 1, 3, 5, 7)]
+    answer = parse_answer(5, nb.cells[5])
+    assert (answer.check, answer.answer, answer.exercise, answer.points) == ("check_double", "answer_99_1", "99.1", 2)
+
+
+def _bad(text=None, meta=ANSWER, kind="code"):
+    nb = tiny()
+    nb.cells[5].cell_type = kind
+    if kind == "markdown":
+        del nb.cells[5]["outputs"], nb.cells[5]["execution_count"]
+    nb.cells[5].source = FUNCTION if text is None else text
+    nb.cells[5].metadata["kfcal"] = meta
+    return nb
+
+
+@pytest.mark.parametrize("nb, words", [
+    (_bad(FUNCTION.replace("    ### END SOLUTION\n", "")), "not closed"),
+    (_bad(FUNCTION.replace("    ### END PLACEHOLDER\n", "")), "inside the placeholder region"),
+    (_bad(FUNCTION.replace("    ### BEGIN SOLUTION\n", "").replace("    ### END SOLUTION\n", "")),
+     "followed directly by a solution region"),
+    (_bad(FUNCTION.replace("    ### BEGIN PLACEHOLDER\n", "")), "without its BEGIN line"),
+    (_bad(FUNCTION + "\nprint(1)"), "last line must be the check call"),
+    (_bad(FUNCTION.replace("### BEGIN SOLUTION", "### begin solution")), "exactly as"),
+    (_bad("answer_99_1 = 1\ncheck_double(answer_99_1)"), "needs a ### BEGIN SOLUTION"),
+    (_bad(meta={"role": "answers"}), "kfcal.role"),
+    (_bad(meta={"role": "answer", "exercise": "1"}), "kfcal.exercise"),
+    (_bad(meta={"role": "answer", "exercise": "99.1", "points": 0}), "kfcal.points"),
+    (_bad(meta={"role": "answer", "exercise": "99.1", "points": True}), "kfcal.points"),
+    (_bad(meta="answer"), "must be a mapping"),
+    (_bad(kind="markdown"), "must be a code cell"),
+])
+def test_a_bad_source_raises_valueerror_naming_the_cell(nb, words):
+    for render in (render_lesson, render_solutions, nbgrader_notebook):
+        with pytest.raises(ValueError, match="source cell 5") as info:
+            render(nb)
+        assert words in str(info.value)
+
+
+def test_outputs_and_a_second_answer_cell_are_refused():
+    nb = tiny()
+    nb.cells[1].outputs = [nbformat.v4.new_output("stream", text="1\n")]
+    with pytest.raises(ValueError, match="source cell 1.*no outputs"):
+        render_lesson(nb)
+    nb = tiny()
+    nb.cells.append(nbformat.v4.new_code_cell(FUNCTION, metadata={"kfcal": dict(ANSWER)}))
+    with pytest.raises(ValueError, match="source cell 8.*second answer cell"):
+        render_lesson(nb)
+
+
+# ------------------------------------------------------------------------------------------------
+# the nbgrader conversion (no nbgrader needed)
+# ------------------------------------------------------------------------------------------------
+def test_nbgrader_notebook_has_answer_and_tests_cells_and_no_solutions_link():
+    nb = nbgrader_notebook(tiny(), modules={"check_double": "somewhere.exercises"})
+    assert [c.source.split("\n")[0] for c in nb.cells] == [
+        "# Lesson", "x = 1", "**Exercise 99.1 — double.** Write f.", "def f(x):",
+        "# the check of exercise 99.1 (2 points): silent when right, its hint otherwise", "## Checks"]
+    assert nb.cells[0].source == "# Lesson"
+    answer, test = nb.cells[3], nb.cells[4]
+    assert answer.source == ('def f(x):\n    """twice x"""\n    ...   # replace ... with your code\n'
+                             '    ### BEGIN SOLUTION\n    y = 2 * x\n    return y\n    ### END SOLUTION\n\n'
+                             'answer_99_1 = f')
+    assert answer.metadata["nbgrader"]["solution"] and not answer.metadata["nbgrader"]["grade"]
+    assert test.source.split("\n")[1:] == ["from somewhere.exercises import check_double",
+                                           "check_double(answer_99_1).assert_correct()"]
+    assert test.metadata["nbgrader"]["grade"] and test.metadata["nbgrader"]["points"] == 2
+    assert test.metadata["nbgrader"]["locked"]
+    with pytest.raises(ValueError, match="source cell 5.*no check named check_double"):
+        nbgrader_notebook(tiny(), modules={})
+
+
+def test_every_lesson_converts_for_nbgrader_without_a_link_to_the_solutions():
+    modules = assignments.check_modules()
+    assert {"check_euler_truth", "check_measure_function"} <= set(modules)
+    total, calls = 0, 0
+    for path in sorted((NOTEBOOKS / "source").glob("*.ipynb")):
+        src = nbformat.read(path, 4)
+        nb = nbgrader_notebook(src, modules)
+        text = "\n".join(c.source for c in nb.cells)
+        assert "solutions/" not in text and "Worked solutions" not in text, path.name
+        assert "### BEGIN PLACEHOLDER" not in text and "**Solution.**" not in text
+        graded = [c.metadata["nbgrader"] for c in nb.cells if c.metadata.get("nbgrader", {}).get("grade")]
+        assert len(graded) == len(assignments.answer_cells(src))
+        assert len({c.metadata["nbgrader"]["grade_id"] for c in nb.cells if "nbgrader" in c.metadata}) == 2 * len(graded)
+        total += len(graded)
+        lesson = nbformat.read(NOTEBOOKS / path.name, 4)
+        calls += sum(c.cell_type == "code" and c.source.rstrip().split("\n")[-1].startswith("check_")
+                     for c in lesson.cells)
+    assert total == calls and total >= 40   # one graded check per check call of the lessons
+
+
+# ------------------------------------------------------------------------------------------------
+# the command's errors: one line on stderr, exit 2, no traceback
+# ------------------------------------------------------------------------------------------------
+def test_cli_errors_are_one_line_exit_2(tmp_path, copy_01):
+    assert "--notebooks" in one_error_line(cli("--notebooks", tmp_path / "nothing"))
+    assert "not allowed with" in one_error_line(cli("--check", "--course", tmp_path / "c"))
+    assert "--execute" in one_error_line(cli("--check", "--execute"))
+    (tmp_path / "file").write_text("x")
+    line = one_error_line(cli("--course", tmp_path / "file"))
+    assert "--course" in line
+    folder, name = copy_01
+    src = nbformat.read(folder / "source" / name, 4)
+    index = next(i for i, c in enumerate(src.cells) if c.metadata.get("kfcal", {}).get("exercise") == "01.2")
+    src.cells[index].source = src.cells[index].source.replace("### END SOLUTION", "")
+    nbformat.write(src, folder / "source" / name)
+    for args in (("--check",), ()):
+        line = one_error_line(cli(*args, "--notebooks", folder))
+        assert f"source cell {index}" in line and "not closed" in line
+
+
+def test_course_without_nbgrader_names_the_instructors_file(tmp_path):
+    pytest.importorskip("nbformat")
+    try:
+        import nbgrader  # noqa: F401
+    except ImportError:
+        line = one_error_line(cli("--course", tmp_path / "course"))
+        assert "environment-instructors.txt" in line
+        assert not (tmp_path / "course").exists()
+    else:
+        pytest.skip("nbgrader is installed here: tests/test_nbgrader_roundtrip.py makes the course")
