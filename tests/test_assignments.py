@@ -201,7 +201,7 @@ def test_nbgrader_notebook_has_answer_and_tests_cells_and_no_solutions_link():
     nb = nbgrader_notebook(tiny(), modules={"check_double": "somewhere.exercises"})
     assert [c.source.split("\n")[0] for c in nb.cells] == [
         "# Lesson", "x = 1", "**Exercise 99.1 — double.** Write f.", "def f(x):",
-        "# the check of exercise 99.1 (2 points): silent when right, its hint otherwise", "## Checks"]
+        "# the check of exercise 99.1 (2 points): prints ✔ when right, fails with its hint otherwise", "## Checks"]
     assert nb.cells[0].source == "# Lesson"
     answer, test = nb.cells[3], nb.cells[4]
     assert answer.source == ('def f(x):\n    """twice x"""\n    ...   # replace ... with your code\n'

@@ -5,7 +5,9 @@ notebook is the lesson with every answer cell turned into two nbgrader cells:
 
 * an *autograded answer* cell: the answer cell's common and placeholder lines and its solution
   region (between ``### BEGIN SOLUTION`` and ``### END SOLUTION``, which nbgrader clears in the
-  release, leaving our placeholder); the check call is removed;
+  release, leaving our placeholder); the check call is removed.  The first one also holds, as a
+  solution region, the worked solutions' setup code (their own settings, e.g. ``dt = 0.01``), so that
+  the instructor's version, lesson and worked answers together, earns full marks;
 * an *autograder tests* cell worth the exercise's points, which imports the check and runs
   ``check_xxx(answer).assert_correct()``: silent on success, an ``AssertionError`` whose message is the
   check's one-line hint otherwise (nbgrader shows it in the feedback).
@@ -18,7 +20,6 @@ from __future__ import annotations
 
 import ast
 import copy
-import os
 import re
 import shutil
 from pathlib import Path
@@ -36,7 +37,6 @@ SOLUTIONS_LINK = re.compile(r"\s*Worked\s+solutions:\s*\[[^\]]*\]\([^)]*\)\.?")
 _PACKAGE = Path(__file__).resolve().parents[1]
 
 CONFIG = '''"""nbgrader configuration of the course made by python -m kfcal_helpers assignments --course."""
-import os
 
 os.environ.setdefault("KFCAL_QUIET", "1")   # no progress bars in the autograded notebooks
 
@@ -75,9 +75,12 @@ def nbgrader_notebook(nb, modules: dict[str, str] | None = None):
     out = copy.deepcopy(nb)
     out["metadata"].pop("kfcal", None)
     cells = []
+    setup = []   # the worked solutions' setup: code cells of the solutions before the first answer cell
     for index, cell in enumerate(nb["cells"]):
         role = cell.get("metadata", {}).get("kfcal", {}).get("role")
         if role == "solution":
+            if cell["cell_type"] == "code" and setup is not None:
+                setup.append(cell["source"])
             continue
         new = copy.deepcopy(cell)
         new["metadata"].pop("kfcal", None)
@@ -91,6 +94,10 @@ def nbgrader_notebook(nb, modules: dict[str, str] | None = None):
             raise ValueError(f"source cell {index} (id {cell.get('id')}): no check named {answer.check} in "
                              f"kfcal_helpers/*/exercises.py")
         lines = []
+        if setup:   # the instructor's version runs the worked answers with their own setup
+            lines += [f"{BEGIN_SOLUTION}   (the worked solutions' setup)", *"\n\n".join(setup).split("\n"),
+                      END_SOLUTION]
+        setup = None
         for region, text in answer.lines[:-1]:
             if region == "marker" and text.strip() not in (BEGIN_SOLUTION, END_SOLUTION):
                 continue
@@ -104,7 +111,7 @@ def nbgrader_notebook(nb, modules: dict[str, str] | None = None):
         cells.append(new)
         test = nbformat.v4.new_code_cell(
             f"# the check of exercise {answer.exercise} ({answer.points:g} point{'s' if answer.points != 1 else ''}):"
-            f" silent when right, its hint otherwise\n"
+            f" prints ✔ when right, fails with its hint otherwise\n"
             f"from {modules[answer.check]} import {answer.check}\n"
             f"{answer.check}({answer.answer}).assert_correct()")
         test["id"] = (cell.get("id") or grade_id)[:40] + "-check"
@@ -173,4 +180,4 @@ def generate(course: Path, names: list[str], log=print) -> None:
         if not result.get("success"):
             error = " ".join(str(result.get("error") or result.get("log") or "unknown error").split())
             raise ValueError(f"nbgrader generate_assignment {name} failed: {error[-300:]}")
-        log(f"released {os.path.relpath(release)}")
+        log(f"released {name}")
