@@ -26,6 +26,9 @@ from traitlets.config import Config  # noqa: E402
 from kfcal_helpers.assignments import answer_cells, generate, write_course  # noqa: E402
 from kfcal_helpers.calibration.exercises import EXERCISES  # noqa: E402
 
+# nbgrader's own gradebook code warns about its SQLAlchemy sessions; not ours to fix
+pytestmark = pytest.mark.filterwarnings("ignore::sqlalchemy.exc.SAWarning")
+
 ROOT = Path(__file__).resolve().parents[1]
 SOURCES = ROOT / "notebooks" / "source"
 SOLVED = ["03_gps_model", "08_coop_nonlinear_model"]

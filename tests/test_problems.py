@@ -211,7 +211,9 @@ def test_problem_lookup():
 # ---------------------------------------------------------------------------
 # Imports point one way
 PACKAGE = Path(kfcal_helpers.__file__).parent
-PROBLEM_PACKAGES = tuple(p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists() and p.name != "exercises")
+# the shared subpackages: the exercise harness and the assignments (lessons rendered from notebooks/source)
+PROBLEM_PACKAGES = tuple(p.name for p in PACKAGE.iterdir()
+                         if (p / "__init__.py").exists() and p.name not in ("exercises", "assignments"))
 
 
 def _imports(path: Path, root: Path = PACKAGE.parent):

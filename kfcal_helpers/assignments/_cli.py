@@ -54,33 +54,34 @@ def _course_dir(value: str) -> Path:
 
 def run(args) -> int:
     """Run the sub-command; returns the exit code (``ValueError`` for bad input: exit 2)."""
-    from . import _nbgrader, _sync
+    from ._nbgrader import generate, nbgrader_missing, write_course
+    from ._sync import differing, sync, targets
 
     notebooks = _notebooks(args.notebooks)
     if args.course is not None:
         if args.execute:
             raise ValueError("--execute renders the notebooks: it does not go with --course")
-        missing = _nbgrader.nbgrader_missing()
+        missing = nbgrader_missing()
         if missing:
             raise ValueError(f"--course: {missing}")
         course = _course_dir(args.course)
-        names = _nbgrader.write_course(course, sorted((notebooks / "source").glob("*.ipynb")))
-        _nbgrader.generate(course, names, log=lambda line: print(line, flush=True))
+        names = write_course(course, sorted((notebooks / "source").glob("*.ipynb")))
+        generate(course, names, log=lambda line: print(line, flush=True))
         print(f"course {path_text(course)}: {len(names)} assignments released; graders run nbgrader there "
               f"(collect, autograde, generate_feedback)")
         return 0
     if args.check:
         if args.execute:
             raise ValueError("--execute writes notebooks: it does not go with --check")
-        differ = _sync.differing(notebooks)
+        differ = differing(notebooks)
         for path in differ:
             print(path_text(path))
         if differ:
             print(f"{len(differ)} notebook(s) differ from notebooks/source: run python -m kfcal_helpers assignments")
             return 1
-        print(f"all {len(_sync.targets(notebooks))} notebooks equal their sources")
+        print(f"all {len(targets(notebooks))} notebooks equal their sources")
         return 0
-    written = _sync.sync(notebooks, run=args.execute, log=lambda line: print(line, flush=True))
+    written = sync(notebooks, run=args.execute, log=lambda line: print(line, flush=True))
     for path, state in written:
         print(f"wrote {path_text(path)} ({state})")
     if not written:
