@@ -199,11 +199,11 @@ def test_outputs_and_a_second_answer_cell_are_refused():
 # ------------------------------------------------------------------------------------------------
 def test_nbgrader_notebook_has_answer_and_tests_cells_and_no_solutions_link():
     nb = nbgrader_notebook(tiny(), modules={"check_double": "somewhere.exercises"})
-    assert [c.source.split("\n")[0] for c in nb.cells] == [
-        "# Lesson", "x = 1", "**Exercise 99.1 — double.** Write f.", "def f(x):",
-        "# the check of exercise 99.1 (2 points): prints ✔ when right, fails with its hint otherwise", "## Checks"]
+    assert [c.source.split("\n")[0] for c in nb.cells] == [   # the checks after the exercises move before them
+        "# Lesson", "x = 1", "## Checks", "**Exercise 99.1 — double.** Write f.", "def f(x):",
+        "# the check of exercise 99.1 (2 points): prints ✔ when right, fails with its hint otherwise"]
     assert nb.cells[0].source == "# Lesson"
-    answer, test = nb.cells[3], nb.cells[4]
+    answer, test = nb.cells[4], nb.cells[5]
     assert answer.source == ('def f(x):\n    """twice x"""\n    ...   # replace ... with your code\n'
                              '    ### BEGIN SOLUTION\n    y = 2 * x\n    return y\n    ### END SOLUTION\n\n'
                              'answer_99_1 = f')

@@ -12,7 +12,9 @@ notebook is the lesson with every answer cell turned into two nbgrader cells:
   ``check_xxx(answer).assert_correct()``: silent on success, an ``AssertionError`` whose message is the
   check's one-line hint otherwise (nbgrader shows it in the feedback).
 
-The sentence that links to the worked solutions ("Worked solutions: [...](...)") is dropped.
+The sentence that links to the worked solutions ("Worked solutions: [...](...)") is dropped, and the
+lesson cells after the last exercise (the checks of the numbers quoted in the text) move before the
+exercises, so that no answer can change what they check.
 nbgrader itself (``environment-instructors.txt``) is imported only by :func:`generate`.
 """
 
@@ -119,8 +121,26 @@ def nbgrader_notebook(nb, modules: dict[str, str] | None = None):
                                         "points": answer.points, "schema_version": 3, "solution": False,
                                         "task": False}
         cells.append(test)
-    out["cells"] = cells
+    out["cells"] = _checks_before_exercises(cells)
     return out
+
+
+def _checks_before_exercises(cells):
+    """The lesson cells after the last graded cell (the checks of the numbers quoted in the text) moved
+    before the exercises (the first "## Exercises" cell, else the first exercise cell): a student's
+    answer, or the worked solutions' setup, cannot change what they check."""
+    graded = [i for i, c in enumerate(cells) if c.get("metadata", {}).get("nbgrader", {}).get("grade")]
+    if not graded:
+        return cells
+    tail = cells[graded[-1] + 1:]
+    head = cells[:graded[-1] + 1]
+    start = next((i for i, c in enumerate(head) if c["cell_type"] == "markdown"
+                  and c["source"].lstrip().startswith("## Exercises")), None)
+    if start is None:
+        start = next(i for i, c in enumerate(head) if "nbgrader" in c.get("metadata", {}))
+        while start > 0 and head[start - 1]["cell_type"] == "markdown" and head[start - 1]["source"].startswith("**"):
+            start -= 1
+    return head[:start] + tail + head[start:]
 
 
 def nbgrader_missing() -> str | None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import os
+import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -104,18 +105,24 @@ def merge(rendered, old):
 def execute(nb, path: Path, timeout: int = 1200):
     """Run ``nb`` (which lives at ``path``) top to bottom in a fresh kernel, in ``path``'s folder, with
     ``KFCAL_QUIET=1``; the course log (``KFCAL_COURSE_LOG``) only for :data:`COURSE_LOG_LESSONS`."""
+    from jupyter_client import AsyncKernelManager
     from nbclient import NotebookClient
 
     saved = dict(os.environ)
     os.environ["KFCAL_QUIET"] = "1"
     if not (path.parent.name != "solutions" and path.stem in COURSE_LOG_LESSONS):
         os.environ.pop("KFCAL_COURSE_LOG", None)
+    sockets = tempfile.mkdtemp(prefix="kfcal-kernel-")
     try:
-        NotebookClient(nb, timeout=timeout, kernel_name="python3",
+        # the kernel on Unix sockets of its own (no TCP port to race for, no unencrypted-TCP warning)
+        km = (AsyncKernelManager(kernel_name="python3", transport="ipc", ip=os.path.join(sockets, "k"))
+              if os.name != "nt" else None)
+        NotebookClient(nb, km=km, timeout=timeout, kernel_name="python3",
                        resources={"metadata": {"path": str(path.parent)}}).execute()
     finally:
         os.environ.clear()
         os.environ.update(saved)
+        shutil.rmtree(sockets, ignore_errors=True)
     return nb
 
 
