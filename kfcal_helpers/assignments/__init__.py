@@ -46,9 +46,10 @@ from ._cli import add_parser
 from ._nbgrader import COURSE_ID, INSTRUCTORS_FILE, check_modules, generate, nbgrader_notebook, write_course
 from ._source import (MARKERS, ROLES, AnswerCell, answer_cells, parse_answer, render, render_lesson, render_solutions,
                       validate)
-from ._sync import COURSE_LOG_LESSONS, NOTEBOOKS, Target, comparable, differing, equal, execute, merge, sync, targets
+from ._sync import (COURSE_LOG_LESSONS, NOTEBOOKS, Target, comparable, differing, equal, execute, merge, sync, targets,
+                    write_notebook)
 
 __all__ = ["ROLES", "MARKERS", "AnswerCell", "parse_answer", "validate", "answer_cells", "render", "render_lesson",
            "render_solutions", "NOTEBOOKS", "COURSE_LOG_LESSONS", "Target", "targets", "comparable", "equal",
            "differing", "merge", "sync", "execute", "COURSE_ID", "INSTRUCTORS_FILE", "check_modules",
-           "nbgrader_notebook", "write_course", "generate", "add_parser"]
+           "nbgrader_notebook", "write_course", "generate", "add_parser", "write_notebook"]

@@ -22,11 +22,13 @@ from __future__ import annotations
 
 import ast
 import copy
+import os
 import re
 import shutil
 from pathlib import Path
 
 from ._source import BEGIN_SOLUTION, END_SOLUTION, parse_answer, validate
+from ._sync import write_notebook
 
 __all__ = ["COURSE_ID", "INSTRUCTORS_FILE", "SOLUTIONS_LINK", "check_modules", "nbgrader_notebook", "write_course",
            "generate", "nbgrader_missing"]
@@ -171,11 +173,14 @@ def write_course(course: Path, sources: list[Path]) -> list[str]:
         except ValueError as exc:
             raise ValueError(f"{path.name}: {exc}") from None
     course.mkdir(parents=True, exist_ok=True)
-    (course / "nbgrader_config.py").write_text(CONFIG.format(course_id=COURSE_ID), encoding="utf-8")
+    config = course / "nbgrader_config.py"
+    partial = course / ".nbgrader_config.py.tmp"
+    partial.write_text(CONFIG.format(course_id=COURSE_ID), encoding="utf-8")
+    os.replace(partial, config)
     for name, nb in made:
         folder = course / "source" / name
         folder.mkdir(parents=True, exist_ok=True)
-        nbformat.write(nb, str(folder / f"{name}.ipynb"))
+        write_notebook(nb, folder / f"{name}.ipynb")
         names.append(name)
     return names
 

@@ -17,7 +17,7 @@ from pathlib import Path
 from ._source import render
 
 __all__ = ["NOTEBOOKS", "COURSE_LOG_LESSONS", "Target", "targets", "comparable", "equal", "differing", "merge",
-           "sync", "execute"]
+           "sync", "execute", "write_notebook"]
 
 #: the repository's notebooks folder (lessons; ``solutions/`` and ``source/`` below it)
 NOTEBOOKS = Path(__file__).resolve().parents[2] / "notebooks"
@@ -126,7 +126,8 @@ def execute(nb, path: Path, timeout: int = 1200):
     return nb
 
 
-def _write(nb, path: Path) -> None:
+def write_notebook(nb, path: Path) -> None:
+    """Write ``nb`` to ``path`` under a temporary name, renamed when complete (no partial file is left)."""
     import nbformat
 
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -157,10 +158,14 @@ def sync(notebooks: Path = NOTEBOOKS, *, run: bool = False, log=print) -> list[t
         if new_code:
             if run:
                 log(f"executing {target.path.relative_to(notebooks.parent)} ...")
+                if (target.which == "lesson" and target.path.stem in COURSE_LOG_LESSONS
+                        and not os.environ.get("KFCAL_COURSE_LOG")):
+                    log(f"note: KFCAL_COURSE_LOG is not set; {target.path.name} is committed executed with the "
+                        f"course log")
                 execute(nb, target.path)
                 state = "executed"
             else:
                 state = "needs execution"
-        _write(nb, target.path)
+        write_notebook(nb, target.path)
         written.append((target.path, state))
     return written
