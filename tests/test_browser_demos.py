@@ -1,15 +1,22 @@
 """The live demos (notebooks 17 and 18) in a real browser: JupyterLab started on localhost for
-this test, headless Chromium driven through selenium as a person would use it.
+this test, headless Chromium driven through selenium as a person would use it, in JupyterLab's
+default layout (the file browser open in the left sidebar) in a 1280x800 window (a 1280x657 page).
 
 For each notebook: open it, run all cells from the Run menu, check that no cell shows an error
-or a warning, that the demo (controls and image) fits a 1280x800 window, then press an arrow key
+or a warning, that no notification (JupyterLab's "official Jupyter news?" question: switched off by
+the settings override the package installs, ``lab_settings/overrides.d``) is shown, that the demo
+(controls and image) fits the window, that the image is shown pixel for pixel in the width the
+notebook gives it (``kfcal_helpers.demos.NOTEBOOK_WIDTH_PX``) and its smallest text, in points at the
+figure's dpi (``kfcal_helpers.demos.smallest_text``), is at least ``MIN_TEXT_PX`` on screen, and that
+no control's text is cut; then press an arrow key
 on a slider and tick a checkbox with the mouse, and check that the image changes and still no
 error appears; in notebook 18 also switch to the UKF, press End on the Q slider and untick the
 bearing UGV->UAV (where the UKF has lost positive definiteness): a figure or a one-line message,
 never a traceback.  The round trip from the key press or click to the new image (its ``load`` event,
-timed in the page) is written to ``benchmarks/browser_roundtrip.json`` (a per-run file, not
-committed).  On a failure a screenshot and the page's HTML go to ``build/browser_failures/``;
-``KFCAL_BROWSER_SCREENSHOTS=DIR`` saves the last view of each demo there as well.
+timed in the page) and the sizes measured are written to ``benchmarks/browser_roundtrip.json`` (a
+per-run file, not committed).  Screenshots of the window after running all cells and after using
+the demo go to a temporary folder, printed and named in that file; on a failure a screenshot and the
+page's HTML go to ``build/browser_failures/``.
 
 Needs Chromium and chromedriver (Debian: ``apt-get install chromium chromium-driver``); the test
 is skipped, with the reason, when they are not found.  Set ``KFCAL_CHROMIUM`` /
@@ -379,6 +386,15 @@ def _live_figure(nb):
     return view.fig
 
 
+def _show(driver, image):
+    """Scroll the demo to the top of the notebook's area (JupyterLab scrolls to the active cell)."""
+    from selenium.webdriver.common.by import By
+
+    box = image.find_element(By.XPATH, "ancestor::div[contains(@class, 'widget-box')][last()]")
+    driver.execute_script("arguments[0].scrollIntoView({block: 'start'});", box)
+    time.sleep(0.3)
+
+
 def _readable(driver, nb, image, shots):
     """No toast (the news question) anywhere, the figure's smallest text at least MIN_TEXT_PX on screen,
     every control's text whole and at least MIN_TEXT_PX; returns what was measured."""
@@ -426,6 +442,7 @@ def _drive(driver, lab, nb, slider, checkbox, roundtrips, shots):
         _no_errors(driver, panel, f"after running all cells of {name}")
         _fits_window(driver, image)
         time.sleep(2)  # the news question, when it is asked, appears a moment after the page has loaded
+        _show(driver, image)
         driver.save_screenshot(str(shots / f"nb{nb}-after-run-all.png"))
         measured = _readable(driver, nb, image, shots)
         driver.execute_script(_TIMING_JS, image)
@@ -441,6 +458,7 @@ def _drive(driver, lab, nb, slider, checkbox, roundtrips, shots):
         _no_errors(driver, panel, f"after moving {slider!r} and clicking {checkbox!r} in {name}")
         _fits_window(driver, image)
         assert not driver.execute_script(_TOASTS_JS), "a notification appeared while the demo was used"
+        _show(driver, image)
         driver.save_screenshot(str(shots / f"nb{nb}-after-use.png"))
     roundtrips[f"notebook {nb}"] = {
         "slider": slider, "key_press_ms": keys, "key_press_median_ms": statistics.median(keys),

@@ -194,7 +194,7 @@ def coop_controls() -> dict:
     controls = {
         "filter": w.ToggleButtons(options=[("EKF", "ekf"), ("UKF", "ukf")], value="ekf", description="filter",
                                   style={"description_width": "40px", "button_width": "70px"},
-                                  layout=w.Layout(width="210px")),
+                                  layout=w.Layout(width="260px")),
         "q_scale": w.FloatLogSlider(value=TUNED_Q_SCALE["ekf"], base=10, min=-2, max=2, step=0.1,
                                     readout_format=".3g", continuous_update=False, description="Q / Qtrue",
                                     style=style, layout=w.Layout(width="330px")),
