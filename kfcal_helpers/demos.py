@@ -1,6 +1,6 @@
 """The machinery of the live lecture demos, shared by every problem: a figure rendered to PNG for an
 ``ipywidgets.Image``, the one-line settings and failure messages, and :class:`LiveDemo`, which puts a
-problem's controls beside the image and redraws on every change.
+problem's controls above the image and redraws on every change.
 
 Each problem's ``demos`` module (``kfcal_helpers.calibration.demos``, ``kfcal_helpers.coop.demos``)
 splits its demo into a *compute* function, which returns plain arrays in a small dataclass, and a
@@ -21,8 +21,16 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-__all__ = ["new_figure", "figure_png", "CachedBackground", "CONTROLS_WIDTH", "DEMO_FAILURES", "require_finite_demo",
+__all__ = ["NOTEBOOK_WIDTH_PX", "MIN_TEXT_PX", "new_figure", "figure_png", "smallest_text", "CachedBackground", "DEMO_FAILURES", "require_finite_demo",
            "failure_message", "describe_controls", "LiveDemo"]
+
+
+#: the width (CSS px) JupyterLab 4.6 gives a notebook's output in a 1280x800 browser window in its
+#: default layout (the file browser open in the left sidebar), measured by tests/test_browser_demos.py:
+#: a live figure at most this wide is shown pixel for pixel, not scaled down
+NOTEBOOK_WIDTH_PX = 833
+#: the smallest text a live demo shows on screen, px (a figure's: points * dpi / 72 at its own size)
+MIN_TEXT_PX = 10.0
 
 
 def new_figure(figure, figsize):
@@ -56,6 +64,37 @@ def figure_png(fig, *, drawn: bool = False) -> bytes:
     buf = io.BytesIO()
     rgba.convert("RGB").save(buf, format="png", compress_level=1)
     return buf.getvalue()
+
+
+def smallest_text(fig) -> tuple[float, str]:
+    """The smallest font size (points) among the visible, non-empty texts of ``fig`` (titles, labels,
+    tick labels, legend, annotations), and that text: ``(points, text)``.  On screen it is
+    ``points * fig.dpi / 72`` px when the PNG is shown at its own size.  Tick labels exist once the
+    figure has been drawn: call this after a draw."""
+    from matplotlib.text import Text
+
+    if not isinstance(fig, Figure):
+        raise ValueError(f"fig must be a matplotlib Figure, got {type(fig).__name__}")
+    texts = [t for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip()
+             and all(a.get_visible() for a in _ancestors(t))]
+    if not texts:
+        raise ValueError("fig has no visible text")
+    small = min(texts, key=lambda t: t.get_fontsize())
+    return float(small.get_fontsize()), small.get_text()
+
+
+def _ancestors(artist):
+    """The artists holding ``artist`` up to its figure (an Axes, an axis, a tick, a legend ...)."""
+    fig = artist.get_figure(root=True) if hasattr(artist, "get_figure") else artist.figure
+    parents = {}
+    for a in fig.findobj():
+        for child in a.get_children():
+            parents.setdefault(id(child), a)
+    out, a = [], parents.get(id(artist))
+    while a is not None and a is not fig:
+        out.append(a)
+        a = parents.get(id(a))
+    return out
 
 
 def _draw_order(fig):
@@ -169,9 +208,6 @@ class CachedBackground:
         return self.fig
 
 
-#: width of the controls' column
-CONTROLS_WIDTH = "350px"
-
 #: what a redraw turns into a one-line message instead of a traceback: ``numpy.linalg.LinAlgError``
 #: (a ValueError: a covariance that is no longer positive definite), any other ValueError (a value
 #: the filter or the draw cannot use), arithmetic faults, and warnings (raised as errors while a
@@ -231,8 +267,9 @@ def describe_controls(controls: dict, values: dict | None = None) -> str:
 
 class LiveDemo:
     """A live demo in the notebook: ``controls`` (a dict of ipywidgets, as a problem's
-    ``*_controls()`` returns) in a column beside an ``ipywidgets.Image`` of ``view``'s figure, and
-    one line of text under it.
+    ``*_controls()`` returns) in rows above an ``ipywidgets.Image`` of ``view``'s figure (they wrap
+    to the notebook's width), and one line of text under it.  The image gets the notebook's whole
+    width, so a figure sized for it (a problem's ``LIVE_FIGSIZE``) is shown pixel for pixel.
 
     A change of any control calls ``compute(**values)`` (the control values by name; it returns
     the problem's demo result, or None when there is nothing to draw), puts the result into
@@ -262,9 +299,9 @@ class LiveDemo:
         self.image = w.Image(format="png")
         self.line = w.HTML()
         self.failed = False
-        column = w.VBox(list(controls.values()), layout=w.Layout(width=CONTROLS_WIDTH, flex="0 0 auto"))
-        self.widget = w.HBox([column, w.VBox([self.image, self.line])],
-                             layout=w.Layout(align_items="flex-start"))
+        bar = w.Box(list(controls.values()), layout=w.Layout(display="flex", flex_flow="row wrap",
+                                                             align_items="center"))
+        self.widget = w.VBox([bar, self.image, self.line], layout=w.Layout(align_items="flex-start"))
         for c in controls.values():
             c.observe(self._changed, names="value")
         self.refresh()

@@ -1,15 +1,22 @@
 """The live demos (notebooks 17 and 18) in a real browser: JupyterLab started on localhost for
-this test, headless Chromium driven through selenium as a person would use it.
+this test, headless Chromium driven through selenium as a person would use it, in JupyterLab's
+default layout (the file browser open in the left sidebar) in a 1280x800 window (a 1280x657 page).
 
 For each notebook: open it, run all cells from the Run menu, check that no cell shows an error
-or a warning, that the demo (controls and image) fits a 1280x800 window, then press an arrow key
+or a warning, that no notification (JupyterLab's "official Jupyter news?" question: switched off by
+the settings override the package installs, ``lab_settings/overrides.d``) is shown, that the demo
+(controls and image) fits the window, that the image is shown pixel for pixel in the width the
+notebook gives it (``kfcal_helpers.demos.NOTEBOOK_WIDTH_PX``) and its smallest text, in points at the
+figure's dpi (``kfcal_helpers.demos.smallest_text``), is at least ``MIN_TEXT_PX`` on screen, and that
+no control's text is cut; then press an arrow key
 on a slider and tick a checkbox with the mouse, and check that the image changes and still no
 error appears; in notebook 18 also switch to the UKF, press End on the Q slider and untick the
 bearing UGV->UAV (where the UKF has lost positive definiteness): a figure or a one-line message,
 never a traceback.  The round trip from the key press or click to the new image (its ``load`` event,
-timed in the page) is written to ``benchmarks/browser_roundtrip.json`` (a per-run file, not
-committed).  On a failure a screenshot and the page's HTML go to ``build/browser_failures/``;
-``KFCAL_BROWSER_SCREENSHOTS=DIR`` saves the last view of each demo there as well.
+timed in the page) and the sizes measured are written to ``benchmarks/browser_roundtrip.json`` (a
+per-run file, not committed).  Screenshots of the window after running all cells and after using
+the demo go to a temporary folder, printed and named in that file; on a failure a screenshot and the
+page's HTML go to ``build/browser_failures/``.
 
 Needs Chromium and chromedriver (Debian: ``apt-get install chromium chromium-driver``); the test
 is skipped, with the reason, when they are not found.  Set ``KFCAL_CHROMIUM`` /
@@ -38,6 +45,7 @@ from chromium import CHROMEDRIVER, CHROMIUM, start
 
 from kfcal_helpers.calibration.demos import calibration_controls
 from kfcal_helpers.coop.demos import coop_controls
+from kfcal_helpers.demos import MIN_TEXT_PX, NOTEBOOK_WIDTH_PX
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = {"17": "17_calibration_live_demo.ipynb", "18": "18_coop_live_demo.ipynb"}
@@ -71,10 +79,9 @@ def lab(tmp_path_factory):
     for name in NOTEBOOKS.values():
         shutil.copy(ROOT / "notebooks" / name, root / name)
     config = tmp / "config"
-    (config / "labconfig").mkdir(parents=True)
-    # no "news" question and no update check popping up over the notebook
-    (config / "labconfig" / "page_config.json").write_text(json.dumps(
-        {"disabledExtensions": {"@jupyterlab/apputils-extension:announcements": True}}))
+    config.mkdir()
+    # a student's JupyterLab: empty user config, settings and workspaces (the default layout, the file
+    # browser open); the news question is switched off by the settings override this package installs
     env = {**os.environ, "JUPYTER_RUNTIME_DIR": str(tmp / "runtime"), "JUPYTER_CONFIG_DIR": str(config),
            "JUPYTER_DATA_DIR": str(tmp / "data"), "JUPYTERLAB_SETTINGS_DIR": str(tmp / "settings"),
            "JUPYTERLAB_WORKSPACES_DIR": str(tmp / "workspaces"), "KFCAL_QUIET": "1"}
@@ -82,8 +89,7 @@ def lab(tmp_path_factory):
     log = open(tmp / "jupyterlab.log", "w")
     proc = subprocess.Popen(
         [sys.executable, "-m", "jupyterlab", "--no-browser", "--allow-root", "--ip=127.0.0.1", f"--port={port}",
-         "--ServerApp.port_retries=0", f"--IdentityProvider.token={token}", f"--ServerApp.root_dir={root}",
-         "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate"],
+         "--ServerApp.port_retries=0", f"--IdentityProvider.token={token}", f"--ServerApp.root_dir={root}"],
         cwd=root, env=env, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
     try:
@@ -133,6 +139,15 @@ def roundtrips():
             "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.system()}",
             "browser": chromium, "window": f"{WINDOW[0]}x{WINDOW[1]}",
             "results": results}, indent=2) + "\n")
+
+
+@pytest.fixture(scope="module")
+def screenshots(tmp_path_factory, roundtrips):
+    """Where the window's screenshots (1280x800) go: a temporary folder, printed and named in BENCH_FILE."""
+    shots = tmp_path_factory.mktemp("demo-screenshots")
+    print(f"screenshots of the demos in JupyterLab: {shots}")
+    roundtrips["screenshots"] = str(shots)
+    return shots
 
 
 @contextmanager
@@ -211,6 +226,33 @@ return {window: [window.innerWidth, window.innerHeight],
 """
 
 
+_FILE_BROWSER_JS = """
+const fb = document.getElementById('filebrowser');
+return fb && fb.offsetParent !== null ? fb.getBoundingClientRect().width : 0;
+"""
+
+# JupyterLab's toast notifications (the news question is one)
+_TOASTS_JS = """
+return Array.from(document.querySelectorAll('.Toastify__toast')).map(e => {
+    const r = e.getBoundingClientRect();
+    return {text: e.innerText.trim().slice(0, 200), left: r.left, top: r.top, right: r.right, bottom: r.bottom};
+});
+"""
+
+# the demo's image as shown (CSS px) and as encoded (its PNG's pixels), the width the notebook gives
+# its output, and every control's text: its font size and whether it is cut (ellipsis or clipped)
+_LAYOUT_JS = """
+const [box, img] = arguments;
+const r = img.getBoundingClientRect(), out = img.closest('.jp-OutputArea-output').getBoundingClientRect();
+const texts = Array.from(box.querySelectorAll(
+        '.widget-label, .widget-readout, .widget-checkbox span, .widget-checkbox label, .widget-toggle-button'))
+    .filter(e => e.innerText.trim()).map(e => ({text: e.innerText.trim(),
+        font_px: parseFloat(getComputedStyle(e).fontSize), cut: e.scrollWidth > e.clientWidth + 1}));
+return {shown: [r.width, r.height], natural: [img.naturalWidth, img.naturalHeight], output_width: out.width,
+        texts: texts};
+"""
+
+
 def _panel(driver):
     """The notebook panel in front (JupyterLab keeps the notebooks opened before in the page)."""
     from selenium.webdriver.common.by import By
@@ -227,9 +269,8 @@ def _open_and_run_all(driver, lab, name):
                   and p.find_elements(By.CSS_SELECTOR, ".jp-Cell") and p, 90, f"{name} to open")
     idle = '.jp-Notebook-ExecutionIndicator[data-status="idle"]'
     _wait(driver, lambda d: panel.find_elements(By.CSS_SELECTOR, idle), 90, "the kernel to be idle")
-    # a lecturer closes the file browser (a click on its icon) to give the notebook the window's width
-    for tab in driver.find_elements(By.CSS_SELECTOR, ".jp-SideBar.jp-mod-left .lm-TabBar-tab.lm-mod-current"):
-        tab.click()
+    # JupyterLab's default layout, as a student sees it: the file browser open in the left sidebar
+    assert driver.execute_script(_FILE_BROWSER_JS) > 100, "the file browser is not open in the left sidebar"
     # Run > Run All Cells, with the mouse
     run_menu = [e for e in driver.find_elements(By.CSS_SELECTOR, ".lm-MenuBar-item") if e.text.strip() == "Run"]
     assert run_menu, "no Run menu in JupyterLab's menu bar"
@@ -262,7 +303,7 @@ def _fits_window(driver, image):
     """The whole demo (every control and the image) is visible at once in the notebook's area."""
     from selenium.webdriver.common.by import By
 
-    box = image.find_element(By.XPATH, "ancestor::div[contains(@class, 'widget-hbox')][last()]")
+    box = image.find_element(By.XPATH, "ancestor::div[contains(@class, 'widget-box')][last()]")
     got = driver.execute_script(_RECTS_JS, box)
     assert got["window"][0] <= WINDOW[0] and got["window"][1] <= WINDOW[1], got["window"]
     v = got["view"]
@@ -322,7 +363,77 @@ def _ukf_at_large_q(driver, panel, image):
     return line
 
 
-def _drive(driver, lab, nb, slider, checkbox, roundtrips):
+def _live_figure(nb):
+    """The live view's figure as the notebook builds it (its style, ``LIVE_FIGSIZE``, the controls'
+    defaults), drawn: the image the browser shows for these settings has its pixel size."""
+    from matplotlib.figure import Figure
+
+    from kfcal_helpers.style import use_style
+
+    use_style()
+    if nb == "17":
+        from kfcal_helpers.calibration.demos import LIVE_FIGSIZE, CalibrationDemoFigure, compute_calibration_demo
+
+        view = CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE))
+        view.update(compute_calibration_demo(outage=(12.0, 18.0)))
+    else:
+        from kfcal_helpers.coop import simulate
+        from kfcal_helpers.coop.demos import LIVE_FIGSIZE, CoopDemoFigure, compute_coop_demo
+
+        view = CoopDemoFigure(Figure(figsize=LIVE_FIGSIZE))
+        view.update(compute_coop_demo(simulate().log(), "ekf"))
+    view.draw()
+    return view.fig
+
+
+def _show(driver, image):
+    """Scroll the demo to the top of the notebook's area (JupyterLab scrolls to the active cell)."""
+    from selenium.webdriver.common.by import By
+
+    box = image.find_element(By.XPATH, "ancestor::div[contains(@class, 'widget-box')][last()]")
+    driver.execute_script("arguments[0].scrollIntoView({block: 'start'});", box)
+    time.sleep(0.3)
+
+
+def _readable(driver, nb, image, shots):
+    """No toast (the news question) anywhere, the figure's smallest text at least MIN_TEXT_PX on screen,
+    every control's text whole and at least MIN_TEXT_PX; returns what was measured."""
+    from selenium.webdriver.common.by import By
+
+    from kfcal_helpers.demos import smallest_text
+
+    box = image.find_element(By.XPATH, "ancestor::div[contains(@class, 'widget-box')][last()]")
+    got = driver.execute_script(_LAYOUT_JS, box, image)
+    toasts = driver.execute_script(_TOASTS_JS)
+    fig = _live_figure(nb)
+    points, text = smallest_text(fig)
+    width_px = fig.canvas.get_width_height()[0]
+    scale = got["shown"][0] / got["natural"][0]
+    on_screen = points * fig.dpi / 72 * scale
+    measured = {"file_browser_px": round(driver.execute_script(_FILE_BROWSER_JS), 1),
+                "output_width_px": round(got["output_width"], 1),
+                "image_px": got["natural"], "image_shown_px": [round(v, 1) for v in got["shown"]],
+                "smallest_figure_text": {"text": text, "points": points, "dpi": fig.dpi,
+                                         "on_screen_px": round(on_screen, 2)},
+                "smallest_control_text_px": min(t["font_px"] for t in got["texts"]), "toasts": toasts,
+                "screenshots": str(shots)}
+    print(f"notebook {nb}: {json.dumps(measured)}")
+    assert not toasts, f"a notification is shown over the notebook (the news question?): {toasts}"
+    assert got["output_width"] >= NOTEBOOK_WIDTH_PX - 0.5, (
+        f"JupyterLab gives the notebook's output {got['output_width']:.0f} px, less than the "
+        f"{NOTEBOOK_WIDTH_PX} px the live figures are sized for (kfcal_helpers.demos.NOTEBOOK_WIDTH_PX)")
+    assert got["natural"][0] == width_px, (
+        f"the browser shows a {got['natural']} px image, the live view's figure is {width_px} px wide")
+    assert on_screen >= MIN_TEXT_PX, (
+        f"the figure's smallest text ({text!r}, {points:g} pt at {fig.dpi:g} dpi) is {on_screen:.1f} px on "
+        f"screen: the {got['natural'][0]} px image is shown {got['shown'][0]:.0f} px wide in the "
+        f"{got['output_width']:.0f} px the notebook gives its output")
+    small = [t for t in got["texts"] if t["font_px"] < MIN_TEXT_PX or t["cut"]]
+    assert not small, f"controls' texts cut or smaller than {MIN_TEXT_PX} px: {small}"
+    return measured
+
+
+def _drive(driver, lab, nb, slider, checkbox, roundtrips, shots):
     from selenium.webdriver.common.keys import Keys
 
     name = NOTEBOOKS[nb]
@@ -330,6 +441,10 @@ def _drive(driver, lab, nb, slider, checkbox, roundtrips):
         panel, image = _open_and_run_all(driver, lab, name)
         _no_errors(driver, panel, f"after running all cells of {name}")
         _fits_window(driver, image)
+        time.sleep(2)  # the news question, when it is asked, appears a moment after the page has loaded
+        _show(driver, image)
+        driver.save_screenshot(str(shots / f"nb{nb}-after-run-all.png"))
+        measured = _readable(driver, nb, image, shots)
         driver.execute_script(_TIMING_JS, image)
         handle = _slider_handle(panel, slider)
         keys = [_round_trip(driver, image, lambda: handle.send_keys(Keys.ARROW_RIGHT), f"a key press on {slider!r}")
@@ -342,19 +457,20 @@ def _drive(driver, lab, nb, slider, checkbox, roundtrips):
                 _ukf_at_large_q(driver, panel, image)
         _no_errors(driver, panel, f"after moving {slider!r} and clicking {checkbox!r} in {name}")
         _fits_window(driver, image)
-        if os.environ.get("KFCAL_BROWSER_SCREENSHOTS"):  # to look at the demo as the test left it
-            driver.save_screenshot(str(Path(os.environ["KFCAL_BROWSER_SCREENSHOTS"]) / f"nb{nb}.png"))
+        assert not driver.execute_script(_TOASTS_JS), "a notification appeared while the demo was used"
+        _show(driver, image)
+        driver.save_screenshot(str(shots / f"nb{nb}-after-use.png"))
     roundtrips[f"notebook {nb}"] = {
         "slider": slider, "key_press_ms": keys, "key_press_median_ms": statistics.median(keys),
-        "checkbox": checkbox, "click_ms": clicks}
+        "checkbox": checkbox, "click_ms": clicks, "layout": measured}
     return keys, clicks
 
 
-def test_calibration_demo_in_the_browser(lab, browser, roundtrips):
+def test_calibration_demo_in_the_browser(lab, browser, roundtrips, screenshots):
     c = calibration_controls()
-    _drive(browser, lab, "17", c["W"].description, c["outage_on"].description, roundtrips)
+    _drive(browser, lab, "17", c["W"].description, c["outage_on"].description, roundtrips, screenshots)
 
 
-def test_coop_demo_in_the_browser(lab, browser, roundtrips):
+def test_coop_demo_in_the_browser(lab, browser, roundtrips, screenshots):
     c = coop_controls()
-    _drive(browser, lab, "18", c["q_scale"].description, c["m1"].description, roundtrips)
+    _drive(browser, lab, "18", c["q_scale"].description, c["m1"].description, roundtrips, screenshots)

@@ -314,3 +314,21 @@ def test_calibration_demo_over_a_grid_of_controls():
                 if check_render(live, values):
                     title = live.view.axes[0].get_title()
                     assert f"GPS {rate:g} Hz" in title and (("outage" in title) == (on and window[0] < window[1]))
+
+
+def test_the_live_view_is_shown_pixel_for_pixel_and_readable():
+    """The live figure fits the notebook's width in JupyterLab's default layout at 1280x800 (so it is
+    not scaled down) and its smallest text is at least MIN_TEXT_PX on screen."""
+    import matplotlib as mpl
+
+    from kfcal_helpers.demos import MIN_TEXT_PX, NOTEBOOK_WIDTH_PX, smallest_text
+    from kfcal_helpers.style import style_params
+
+    with mpl.rc_context(style_params()):  # the notebooks' style (90 dpi), as in notebooks 17 and 18
+        view = CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE))
+        view.update(compute_calibration_demo(outage=(12.0, 18.0)))
+        view.draw()
+    width, height = view.fig.canvas.get_width_height()
+    points, text = smallest_text(view.fig)
+    assert width <= NOTEBOOK_WIDTH_PX and height <= 0.7 * width, (width, height)
+    assert points * view.fig.dpi / 72 >= MIN_TEXT_PX, (text, points, view.fig.dpi)

@@ -252,12 +252,12 @@ def test_live_demo_shows_the_figure_and_follows_the_controls(log):
     live.controls["m1"].value = False  # untick the range: the observer recomputes and redraws
     assert not live.failed and live.image.value != first
     assert "4 measurements" in live.line.value and "range" not in live.view.fig.get_suptitle().split("\n")[0]
-    # the layout: controls in a column beside the image and the line under it
+    # the layout: the controls in wrapping rows above the image, the line under it
     import ipywidgets as w
 
-    column, right = live.widget.children
-    assert isinstance(live.widget, w.HBox) and list(column.children) == list(live.controls.values())
-    assert list(right.children) == [live.image, live.line]
+    bar, image, line = live.widget.children
+    assert isinstance(live.widget, w.VBox) and list(bar.children) == list(live.controls.values())
+    assert (image, line) == (live.image, live.line)
 
 
 @pytest.mark.parametrize("error, says", [
@@ -367,3 +367,21 @@ def test_coop_demo_over_a_grid_of_controls(log, filter):
     print(filter, "combinations not drawn:", [k for k, ok in outcome.items() if not ok])
     assert filter == "ekf" or outcome[1.0, "all five"]  # the UKF's tuned defaults draw
 
+
+
+def test_the_live_view_is_shown_pixel_for_pixel_and_readable(log):
+    """The live figure fits the notebook's width in JupyterLab's default layout at 1280x800 (so it is
+    not scaled down) and its smallest text is at least MIN_TEXT_PX on screen."""
+    import matplotlib as mpl
+
+    from kfcal_helpers.demos import MIN_TEXT_PX, NOTEBOOK_WIDTH_PX, smallest_text
+    from kfcal_helpers.style import style_params
+
+    with mpl.rc_context(style_params()):  # the notebooks' style (90 dpi), as in notebooks 17 and 18
+        view = CoopDemoFigure(Figure(figsize=LIVE_FIGSIZE))
+        view.update(compute_coop_demo(log, "ekf"))
+        view.draw()
+    width, height = view.fig.canvas.get_width_height()
+    points, text = smallest_text(view.fig)
+    assert width <= NOTEBOOK_WIDTH_PX and height <= 0.7 * width, (width, height)
+    assert points * view.fig.dpi / 72 >= MIN_TEXT_PX, (text, points, view.fig.dpi)

@@ -1,4 +1,4 @@
-"""The shared live-demo machinery (kfcal_helpers.demos) on a toy demo: the controls beside the image,
+"""The shared live-demo machinery (kfcal_helpers.demos) on a toy demo: the controls above the image,
 a redraw per change, and a one-line message instead of any traceback or warning.  The problems' own
 demos are tested in tests/test_calibration_demos.py and tests/test_coop_demos.py."""
 
@@ -8,10 +8,11 @@ import warnings
 import ipywidgets as w
 import numpy as np
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from kfcal_helpers.demos import (DEMO_FAILURES, CachedBackground, LiveDemo, describe_controls, failure_message,
-                                 figure_png, new_figure, require_finite_demo)
+                                 figure_png, new_figure, require_finite_demo, smallest_text)
 
 from demo_checks import fast_draw_is_full_draw, png_size
 
@@ -67,9 +68,9 @@ def test_live_demo_shows_the_figure_and_follows_the_controls():
     assert first[:4] == b"\x89PNG" and png_size(first) == tuple(round(s * live.view.fig.dpi) for s in (4.0, 3.0))
     live.controls["gain"].value = 2.0
     assert not live.failed and live.image.value != first and "gain 2.00" in live.line.value
-    column, right = live.widget.children
-    assert isinstance(live.widget, w.HBox) and list(column.children) == list(live.controls.values())
-    assert list(right.children) == [live.image, live.line]
+    bar, image, line = live.widget.children  # the controls in wrapping rows above the image, the line under it
+    assert isinstance(live.widget, w.VBox) and list(bar.children) == list(live.controls.values())
+    assert bar.layout.flex_flow == "row wrap" and (image, line) == (live.image, live.line)
 
 
 @pytest.mark.parametrize("error, says", [
@@ -175,6 +176,27 @@ def test_new_figure_and_png():
     plt.close(fig)
 
 
+def test_smallest_text_finds_the_smallest_visible_text():
+    fig = Figure(figsize=(3.0, 2.0))
+    ax = fig.subplots()
+    ax.set_title("title", fontsize=12)
+    ax.set_xlabel("x", fontsize=11)
+    ax.tick_params(labelsize=10)
+    FigureCanvasAgg(fig).draw()  # the tick labels exist once drawn
+    assert smallest_text(fig)[0] == 10.0
+    ax.text(0.5, 0.5, "note", fontsize=7)
+    ax.text(0.5, 0.2, "hidden", fontsize=5, visible=False)  # hidden and empty texts do not count
+    ax.text(0.5, 0.3, "  ", fontsize=4)
+    legend = ax.legend(handles=[ax.plot([0, 1], label="line")[0]], fontsize=6)
+    assert smallest_text(fig) == (6.0, "line")
+    legend.set_visible(False)  # the text of a hidden legend is not shown
+    assert smallest_text(fig) == (7.0, "note")
+    with pytest.raises(ValueError, match="fig must be a matplotlib Figure"):
+        smallest_text(ax)
+    with pytest.raises(ValueError, match="fig has no visible text"):
+        smallest_text(Figure())
+
+
 class FastToyFigure(ToyFigure):
     """The toy figure with a kept background: its x axis (fixed limits) is drawn once."""
 
@@ -234,3 +256,23 @@ def test_cached_background_validates_and_live_demo_uses_it():
     live.controls["gain"].value = 2.0
     assert view.background.full_draws == 1 and not live.failed  # the slider move drew the changed part only
     assert live.image.value == figure_png(view.fig)  # the same PNG as a full draw
+
+
+def test_jupyterlab_asks_no_news_question_in_this_environment():
+    """The install puts the package's settings override where this environment's JupyterLab reads it
+    (``<sys.prefix>/share/jupyter/lab/settings/overrides.d/``, editable install included): no "official
+    Jupyter news?" toast and no update check over the live demos."""
+    import json
+    from pathlib import Path
+
+    from jupyterlab.commands import get_app_dir
+    from jupyterlab_server.settings_utils import _get_overrides
+
+    repo = json.loads((Path(__file__).parents[1] / "lab_settings" / "overrides.d" / "kfcal-helpers.json").read_text())
+    installed = Path(get_app_dir()) / "settings" / "overrides.d" / "kfcal-helpers.json"
+    assert installed.is_file(), f"{installed} missing: reinstall the package (pip install -r environment.txt)"
+    assert json.loads(installed.read_text()) == repo, f"{installed} is out of date: reinstall the package"
+    overrides, error = _get_overrides(str(Path(get_app_dir()) / "settings"))
+    assert not error
+    notification = overrides["@jupyterlab/apputils-extension:notification"]
+    assert notification["fetchNews"] == "false" and notification["checkForUpdates"] is False

@@ -39,9 +39,11 @@ __all__ = ["ENSEMBLES", "LIVE_FIGSIZE", "valid_gps_rates", "CalibrationDemo", "c
 
 #: how the demo's ensemble is drawn: at the fixes only, or by the full 200 Hz simulation
 ENSEMBLES = ("fixes", "simulate")
-#: figure size (inches, at the notebook style's 90 dpi) of the live view: with the controls in a column
-#: beside the image, the whole demo fits a 1280x800 browser window (tests/test_browser_demos.py)
-LIVE_FIGSIZE = (7.8, 5.4)
+#: figure size (inches, at the notebook style's 90 dpi: 819 x 423 px) of the live view: the width
+#: JupyterLab gives a notebook's output in a 1280x800 browser window with the file browser open (833 px),
+#: so the image is shown pixel for pixel, its smallest text (9 pt) 11 px; with the controls in two rows
+#: above it the whole demo fits that window (tests/test_browser_demos.py)
+LIVE_FIGSIZE = (9.1, 4.7)
 
 
 def valid_gps_rates(imu_rate: float = 200.0, max_rate: float = 25.0) -> tuple[float, ...]:
@@ -226,9 +228,9 @@ class CalibrationDemoFigure:
             ens_down, = ax.plot([], [], ".", color="C0", ms=3)
             self.lines.append((err, up, down, ens_up, ens_down))
             ax.set_ylabel(_CAL_LABELS[k], fontsize=9)
-        self.legend = self.axes[0].legend(loc="upper right", ncol=3, fontsize=8)
+        self.legend = self.axes[0].legend(loc="upper right", ncol=3, fontsize=9)
         self.axes[-1].set_xlabel("time $t$ [s]")
-        self.fig.subplots_adjust(left=0.1, right=0.98, bottom=0.08, top=0.94, hspace=0.3)
+        self.fig.subplots_adjust(left=0.095, right=0.985, bottom=0.1, top=0.93, hspace=0.42)
         # the outage shading, one per panel, moved by update (hidden without an outage); zorder between the
         # axes' grid (1.5) and the lines (2), so it is drawn after the kept x axes
         self._shades = [ax.axvspan(0.0, 0.0, color="C1", alpha=0.2, lw=0, zorder=1.6, visible=False)
@@ -295,18 +297,23 @@ def calibration_controls() -> dict:
     """
     import ipywidgets as w
 
-    style = {"description_width": "140px"}
-    layout = w.Layout(width="340px")
+    # three controls a row above the figure (LiveDemo): two rows in the notebook's 833 px (a 1280x800
+    # window with the file browser open); every description at its natural width
+    style = {"description_width": "initial"}
+
+    def width(px):
+        return w.Layout(width=f"{px}px")
+
     return {
         "gps_rate": w.SelectionSlider(options=valid_gps_rates(), value=5.0, description="GPS rate [Hz]",
-                                      style=style, layout=layout),
+                                      style=style, layout=width(255)),
         "W": w.FloatLogSlider(value=4e-4, base=10, min=-6, max=-2, step=0.1, readout_format=".1e",
-                              description="IMU noise W [(m/s²)²]", style=style, layout=layout),
+                              description="IMU noise W [(m/s²)²]", style=style, layout=width(310)),
         "gps_pos_sigma": w.FloatLogSlider(value=1.0, base=10, min=-1, max=1, step=0.05, readout_format=".2f",
-                                          description="GPS σ_p [m]", style=style, layout=layout),
+                                          description="GPS σ_p [m]", style=style, layout=width(245)),
         "bias_sigma": w.FloatLogSlider(value=0.1, base=10, min=-3, max=0, step=0.1, readout_format=".3f",
-                                       description="bias prior σ [m/s²]", style=style, layout=layout),
-        "outage_on": w.Checkbox(value=True, description="GPS outage", style=style),
+                                       description="bias prior σ [m/s²]", style=style, layout=width(300)),
+        "outage_on": w.Checkbox(value=True, description="GPS outage", indent=False, style=style, layout=width(115)),
         "outage": w.FloatRangeSlider(value=(12.0, 18.0), min=0.0, max=30.0, step=0.5, readout_format=".1f",
-                                     description="outage window [s]", style=style, layout=layout),
+                                     description="outage window [s]", style=style, layout=width(380)),
     }

@@ -30,9 +30,12 @@ __all__ = ["COOP_DEMO_FILTERS", "MEASUREMENT_NAMES", "LIVE_FIGSIZE", "CoopDemo",
 COOP_DEMO_FILTERS = ("ekf", "ukf")
 #: the five measurements, in the order of the rows of y
 MEASUREMENT_NAMES = ("bearing UGV→UAV", "range", "bearing UAV→UGV", "UAV GPS east", "UAV GPS north")
-#: figure size (inches, at the notebook style's 90 dpi) of the live view: with the controls in a column
-#: beside the image, the whole demo fits a 1280x800 browser window (tests/test_browser_demos.py)
-LIVE_FIGSIZE = (8.4, 4.9)
+#: figure size (inches, at the notebook style's 90 dpi: 819 x 378 px) of the live view: the width
+#: JupyterLab gives a notebook's output in a 1280x800 browser window with the file browser open (833 px),
+#: so the image is shown pixel for pixel, its smallest text (9 pt) 11 px; with the controls in two rows
+#: above it and the two-line NIS summary under it the whole demo fits that window
+#: (tests/test_browser_demos.py)
+LIVE_FIGSIZE = (9.1, 4.2)
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,8 +146,8 @@ class CoopDemoFigure:
             ax.set_ylabel(f"error {STATE_LABELS[i]}")
         for ax in self.axes[-1]:
             ax.set_xlabel("time $t$ [s]")
-        self.axes[0, 0].legend(loc="upper right", fontsize=8)
-        self.fig.subplots_adjust(left=0.08, right=0.975, bottom=0.1, top=0.86, wspace=0.4, hspace=0.12)
+        self.axes[0, 0].legend(loc="upper right", fontsize=9)
+        self.fig.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.86, wspace=0.38, hspace=0.14)
         # the x axes (time, ticks, grid, label) only change with the log's time span: drawn once
         self.background = CachedBackground(self.fig, [ax.xaxis for ax in self.axes.flat],
                                            key=lambda: tuple(ax.get_xlim() for ax in self.axes.flat))
@@ -185,14 +188,18 @@ def coop_controls() -> dict:
     (each release runs the filter once and redraws)."""
     import ipywidgets as w
 
-    style = {"description_width": "120px"}
+    # in rows above the figure (LiveDemo): two rows in the notebook's 833 px (a 1280x800 window with
+    # the file browser open); descriptions and checkboxes at their natural width
+    style = {"description_width": "initial"}
     controls = {
         "filter": w.ToggleButtons(options=[("EKF", "ekf"), ("UKF", "ukf")], value="ekf", description="filter",
-                                  style={**style, "button_width": "80px"}),
+                                  style={"description_width": "40px", "button_width": "70px"},
+                                  layout=w.Layout(width="260px")),
         "q_scale": w.FloatLogSlider(value=TUNED_Q_SCALE["ekf"], base=10, min=-2, max=2, step=0.1,
                                     readout_format=".3g", continuous_update=False, description="Q / Qtrue",
-                                    style=style, layout=w.Layout(width="340px")),
+                                    style=style, layout=w.Layout(width="330px")),
     }
     for i, name in enumerate(MEASUREMENT_NAMES):
-        controls[f"m{i}"] = w.Checkbox(value=True, description=name, indent=False, layout=w.Layout(width="300px"))
+        controls[f"m{i}"] = w.Checkbox(value=True, description=name, indent=False,
+                                       layout=w.Layout(width="auto", margin="2px 14px 2px 2px"))
     return controls
