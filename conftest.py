@@ -63,26 +63,64 @@ def kernel_manager_class():
     return over_ipc(AsyncKernelManager)
 
 
-#: test files that share a session fixture of tests/conftest.py, by the work unit they form: pytest-xdist
-#: (``--dist loadfile``) gives each unit to one worker, so the fixture is computed once per run
+#: outputs of the notebooks nbval ran in this process, by notebook path: ``{"course_log": the
+#: KFCAL_COURSE_LOG its kernel had, "quiet": its KFCAL_QUIET, "outputs": [each code cell's outputs],
+#: "passed": whether every cell passed}``; see the ``nbval_runs`` fixture
+NBVAL_RUNS: dict = {}
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """Keep what each nbval cell printed (:data:`NBVAL_RUNS`), in the order of its code cells."""
+    outcome = yield
+    if call.when != "call" or not (hasattr(item, "cell_num") and hasattr(item, "test_outputs")):
+        return
+    report = outcome.get_result()
+    run = NBVAL_RUNS.setdefault(str(item.path), {"course_log": os.environ.get("KFCAL_COURSE_LOG"),
+                                                 "quiet": os.environ.get("KFCAL_QUIET"),
+                                                 "outputs": [], "passed": True})
+    if item.cell_num != len(run["outputs"]):  # a cell left out (deselected, or run twice): not one whole run
+        run["passed"] = False
+    run["outputs"].append(list(item.test_outputs or []))
+    run["passed"] = run["passed"] and report.passed and item.test_outputs is not None
+
+
+@pytest.fixture(scope="session")
+def nbval_runs():
+    """The notebooks nbval has run so far in this process (:data:`NBVAL_RUNS`; read-only), so that a
+    test needing the same notebook run in the same environment can check its outputs instead of
+    running it once more (``tests/test_notebook13_modes.py``)."""
+    return NBVAL_RUNS
+
+
+#: test files that share a session fixture of tests/conftest.py (or a run above), by the work unit they
+#: form: pytest-xdist (``--dist loadfile``) gives each unit to one worker, so the fixture is computed once
+#: per run
 SHARED_SCOPES = {
     "tests/test_mistakes.py": "mistakes table",
     "tests/test_calibration_mistakes.py": "mistakes table",
     "tests/test_coop_mistakes.py": "mistakes table",
+    # nbval's run of notebook 13 is one of the modes tests/test_notebook13_modes.py checks (SLOW_FIRST:
+    # the notebook first)
+    "notebooks/13_coop_log_comparison.ipynb": "notebook 13",
+    "tests/test_notebook13_modes.py": "notebook 13",
 }
 
 
 #: the files that take one worker longest (a browser, a site build, notebook runs, child processes), handed
-#: out first, so that no worker is left alone with one of them at the end (xdist's own order, by the
-#: number of tests in a file, would hand them out last)
+#: out first, longest first (worker seconds of each, measured on the 2-core machine), so that no worker is left
+#: alone with one of them at the end (xdist's own order, by the number of tests in a file, would hand them out
+#: last); the two browser tests are not the first two, so that they do not start together
 SLOW_FIRST = (
-    "tests/test_site.py",
-    "tests/test_browser_demos.py",
+    "tests/test_fuzz_cli.py",  # about 50 s: real processes (signals, streams, peak memory)
+    "tests/test_browser_demos.py",  # about 40 s: JupyterLab and Chromium
+    "tests/test_site.py",  # about 35 s: the site build and Chromium
+    "notebooks/13_coop_log_comparison.ipynb",  # with the next: one unit (SHARED_SCOPES), about 30 s
     "tests/test_notebook13_modes.py",
-    "tests/test_calibration_memory.py",
-    "tests/test_fuzz_cli.py",
-    "tests/test_install.py",
-    "tests/test_coop_memory.py",
+    "tests/test_calibration_memory.py",  # about 20 s: child processes at the largest runs
+    "tests/test_install.py",  # about 10 s: pip install into a fresh venv
+    "tests/test_coop_memory.py",  # about 10 s
+    "notebooks/06b_monte_carlo_bands_and_power.ipynb",  # about 9 s
     "tests/test_figures.py",
 )
 

@@ -85,27 +85,45 @@ def test_measurement_shapes_rejected():
 
 
 def run_cli(*args):
+    """``python -m kfcal_helpers calibrate ARGS`` in a real process (the entry point itself)."""
     return subprocess.run([sys.executable, "-m", "kfcal_helpers", "calibrate", *args],
                           capture_output=True, text=True, env={"KFCAL_QUIET": "1", "PATH": ""})
 
 
-@pytest.mark.parametrize("args, word", [
+BAD_ARGS = [
     (["--runs", "1"], "--runs"), (["--gps-rate", "3"], "--gps-rate"), (["--duration", "-1"], "--duration"),
     (["--omega", "nan"], "--omega"), (["--imu-rate", "0"], "--imu-rate"), (["--engine", "gpu"], "--engine"),
     (["--runs", "ten"], "--runs"), (["--truth", "rk4"], "--truth"),
-])
-def test_cli_bad_input_one_line_exit_2(args, word):
+]
+
+
+def _one_line_exit_2(code, out, err, word):
+    assert code == 2
+    assert out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and word in lines[0] and "Traceback" not in err
+
+
+@pytest.mark.parametrize("args, word", BAD_ARGS)
+def test_cli_bad_input_one_line_exit_2(args, word, capsys):
+    """Each bad value through ``kfcal_helpers.cli.main`` (what ``python -m kfcal_helpers`` runs)."""
+    code = main(["calibrate", *args])
+    captured = capsys.readouterr()
+    _one_line_exit_2(code, captured.out, captured.err, word)
+
+
+def test_cli_bad_input_one_line_exit_2_real_process():
+    """The same through the real entry point, for one row (a ValueError of the library's checks)."""
+    args, word = BAD_ARGS[3]
     r = run_cli(*args)
-    assert r.returncode == 2
-    assert r.stdout == ""
-    lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and word in lines[0] and "Traceback" not in r.stderr
+    _one_line_exit_2(r.returncode, r.stdout, r.stderr, word)
 
 
-def test_cli_json(tmp_path):
-    r = run_cli("--runs", "50", "--seed", "3", "--json", "--figures", str(tmp_path))
-    assert r.returncode == 0, r.stderr
-    d = json.loads(r.stdout)
+def test_cli_json(tmp_path, capsys):
+    assert main(["calibrate", "--runs", "50", "--seed", "3", "--json", "--figures", str(tmp_path)]) == 0
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.err
+    d = json.loads(captured.out)
     for key in ("n_runs", "filter", "seconds", "sigma_final", "ensemble_sigma_final", "checks"):
         assert key in d
     assert d["n_runs"] == 50 and d["filter"] == "batch" and len(d["sigma_final"]) == 3

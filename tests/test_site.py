@@ -156,6 +156,20 @@ def _outside_requests(driver) -> list[str]:
     return urls
 
 
+def _open(driver, url: str, timeout: float = 60.0) -> None:
+    """Open ``url`` and wait until its document has loaded (``readyState`` "complete").
+
+    WebDriver's ``get`` alone is not enough: on a busy machine headless Chromium has been seen to
+    return from it with the new page still "loading" (1.8 kB of a 260 kB lesson parsed), so that
+    what comes later in the page (a demo's note, its images) was not there yet."""
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    driver.get(url)
+    WebDriverWait(driver, timeout, poll_frequency=0.02).until(
+        lambda d: d.execute_script("return document.readyState === 'complete' && location.href;") == url,
+        f"{url} did not finish loading in {timeout:.0f} s")
+
+
 def _console(driver) -> list[str]:
     return [f"{e['level']}: {e['message'][:300]}" for e in driver.get_log("browser")
             if e["level"] in ("SEVERE", "WARNING")]
@@ -231,7 +245,7 @@ def test_every_page_in_the_browser(site, browser):
     browser.get_log("browser")
     for page in _pages(site):
         name = page.relative_to(site).as_posix()
-        browser.get(page.as_uri())
+        _open(browser, page.as_uri())
         math = browser.execute_async_script(_MATH_JS)
         if "failed" in math:
             problems.append(f"{name}: MathJax failed: {math['failed']}")
@@ -261,7 +275,7 @@ def test_demo_pages_show_the_stored_image(site, browser, name):
     """The live demo's widget becomes the image it stored and the note that its controls need Jupyter."""
     from selenium.webdriver.common.by import By
 
-    browser.get((site / "lessons" / f"{name}.html").as_uri())
+    _open(browser, (site / "lessons" / f"{name}.html").as_uri())
     note = browser.find_elements(By.CSS_SELECTOR, ".kfcal-live-note")
     assert len(note) == 1, f"{len(note)} live-demo notes on {name}"
     # the cell holding the note holds the demo's stored image, loaded
@@ -280,7 +294,7 @@ def test_search_finds_a_word(site, browser):
     from selenium.webdriver.common.by import By
 
     browser.get_log("browser")
-    browser.get((site / "search.html").as_uri() + "?q=filterpy")
+    _open(browser, (site / "search.html").as_uri() + "?q=filterpy")
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:
         hits = browser.find_elements(By.CSS_SELECTOR, "#search-results ul.search li a")
