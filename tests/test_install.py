@@ -1,6 +1,6 @@
 """A plain ``pip install .`` into a fresh virtual environment gives a working command line.
 
-The package's files (``kfcal_helpers/``, ``pyproject.toml``, ``README.md``) are copied to a
+The package's files (``kfcal_helpers/``, ``lab_settings/``, ``pyproject.toml``, ``README.md``) are copied to a
 temporary folder, so the build leaves nothing in the working copy; the venv is made without pip
 (``venv --without-pip``) and filled by this interpreter's pip through ``pip --python``, from the
 warm pip cache, without byte-compiling the installed packages (``--no-compile``: the third of the
@@ -30,6 +30,8 @@ def test_plain_pip_install_runs_calibrate(tmp_path):
     src = tmp_path / "src"
     shutil.copytree(ROOT / "kfcal_helpers", src / "kfcal_helpers",
                     ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    # the build's own files too: the JupyterLab settings override and its editable-install command
+    shutil.copytree(ROOT / "lab_settings", src / "lab_settings", ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
     for name in ("pyproject.toml", "README.md"):
         shutil.copy(ROOT / name, src / name)
     venv = tmp_path / "venv"
@@ -49,3 +51,6 @@ def test_plain_pip_install_runs_calibrate(tmp_path):
     where = subprocess.run([str(python), "-c", "import kfcal_helpers; print(kfcal_helpers.__file__)"], cwd=tmp_path,
                            capture_output=True, text=True, env=env)
     assert str(venv) in where.stdout
+    # the install puts JupyterLab's settings override (no news question, no update check) where JupyterLab reads it
+    override = venv / "share" / "jupyter" / "lab" / "settings" / "overrides.d" / "kfcal-helpers.json"
+    assert override.read_text() == (ROOT / "lab_settings" / "overrides.d" / "kfcal-helpers.json").read_text()
