@@ -278,11 +278,13 @@ def _open_and_run_all(driver, lab, name):
     item = _wait(driver, lambda d: [e for e in d.find_elements(By.CSS_SELECTOR, ".lm-Menu-item .lm-Menu-itemLabel")
                                     if e.text.strip() == "Run All Cells"], 10, "the Run All Cells menu item")
     item[0].click()
-    n_code = len(driver.execute_script(_PROMPTS_JS, panel))
+    # the number of code cells from the notebook file: JupyterLab may not have put every cell in the page yet
+    cells = json.loads((ROOT / "notebooks" / name).read_text(encoding="utf-8"))["cells"]
+    n_code = sum(c["cell_type"] == "code" for c in cells)
 
     def finished(d):
         prompts = d.execute_script(_PROMPTS_JS, panel)
-        done = all(p.startswith("[") and p[1:-2].strip().isdigit() for p in prompts)
+        done = len(prompts) == n_code and all(p.startswith("[") and p[1:-2].strip().isdigit() for p in prompts)
         return done and panel.find_elements(By.CSS_SELECTOR, idle)
 
     _wait(driver, finished, 240, f"all {n_code} code cells of {name} to run")
