@@ -603,3 +603,16 @@ def test_the_right_value_as_complex_is_not_right(exercise):
         for answer in (np.asarray(right, dtype=float) + 1e-3j, np.asarray(right, dtype=complex)):
             fb = check(answer)
             assert not fb.correct and "complex" in fb.message, str(fb)
+
+
+def test_batch_two_fixes_recognises_the_ill_conditioned_mistake_on_any_machine():
+    """16.1's "no V" mistake solves with Σ_zz of condition number ~3e11: computations of it differ by
+    ~1e-5 between BLAS builds, so the check recognises it at rtol 1e-3 (the right answer is ~10 % away)."""
+    _, right, wrong, _ = CASES["16.1"]
+    no_v = dict(wrong)["no_v"]
+    assert not np.allclose(no_v, right, rtol=0.05)
+    for factor in (1 + 3e-5, 1 - 2e-4):
+        fb = ex.check_batch_two_fixes(no_v * factor)
+        assert not fb.correct and HINTS["16.1"]["no_v"] in fb.message, str(fb)
+    fb = ex.check_batch_two_fixes(no_v * 1.01)  # farther off: no longer that mistake
+    assert not fb.correct and HINTS["16.1"]["no_v"] not in fb.message, str(fb)
