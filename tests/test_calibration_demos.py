@@ -9,7 +9,7 @@ from matplotlib.figure import Figure
 from scipy import stats
 
 from kfcal_helpers.calibration import (CalibrationParams, covariance_sequence, outage_mask, run_filterpy, simulate)
-from kfcal_helpers.calibration.demos import (LIVE_FIGSIZE, CalibrationDemo, CalibrationDemoFigure,
+from kfcal_helpers.calibration.demos import (LIVE_FIGSIZE, W_STOPS, CalibrationDemo, CalibrationDemoFigure,
                                              calibration_controls, compute_calibration_demo, draw_calibration_demo,
                                              valid_gps_rates)
 from kfcal_helpers.calibration.exercises import (EXERCISES, check_demo_first_fix_sigma, check_demo_ratio_band,
@@ -17,7 +17,7 @@ from kfcal_helpers.calibration.exercises import (EXERCISES, check_demo_first_fix
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
 from kfcal_helpers.exercises import ROUNDED_HINT
 
-from demo_checks import check_render, fast_draw_is_full_draw
+from demo_checks import check_render, fast_draw_is_full_draw, off_grid_defaults
 
 P = CalibrationParams()
 HINTS = {i: EXERCISES[i].hints for i in ("17.1", "17.2")}
@@ -158,6 +158,16 @@ def test_calibration_controls_match_the_compute_function():
     v = {k: w.value for k, w in c.items()}
     assert (v["gps_rate"], v["W"], v["gps_pos_sigma"] ** 2, v["bias_sigma"] ** 2) == (P.gps_rate, P.W, P.gps_pos_var,
                                                                                       pytest.approx(P.bias_var))
+    assert P.W in W_STOPS and len(W_STOPS) == 41 and np.all(np.diff(W_STOPS) > 0)
+    # the stops are those of a log slider of ten steps a decade, rounded to the R10 preferred numbers
+    assert np.allclose(np.log10(W_STOPS), np.linspace(-6, -2, 41), rtol=0, atol=0.005)
+
+
+def test_calibration_slider_defaults_are_stops_of_their_sliders():
+    # a default between two stops is moved to the nearest one by the browser when it draws the slider
+    # (W = 4e-4 on a log slider of 0.1-decade steps became 10 ** -3.4 = 3.98e-4, and the live figure showed
+    # other numbers than the lesson's)
+    assert off_grid_defaults(calibration_controls()) == []
 
 
 
@@ -302,15 +312,16 @@ def test_calibration_demo_over_a_grid_of_controls():
     live = LiveDemo(calibration_controls(), calibration_demo_for,
                     CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE)))
     c = live.controls
-    corners = [{"W": c["W"].min, "gps_pos_sigma": c["gps_pos_sigma"].min, "bias_sigma": c["bias_sigma"].min},
-               {"W": c["W"].max, "gps_pos_sigma": c["gps_pos_sigma"].max, "bias_sigma": c["bias_sigma"].max}]
+    corners = [{"W": c["W"].options[0][1], "gps_pos_sigma": 10.0 ** c["gps_pos_sigma"].min,
+                "bias_sigma": 10.0 ** c["bias_sigma"].min},
+               {"W": c["W"].options[-1][1], "gps_pos_sigma": 10.0 ** c["gps_pos_sigma"].max,
+                "bias_sigma": 10.0 ** c["bias_sigma"].max}]
     outages = [(False, (12.0, 18.0)), (True, (0.0, 30.0)), (True, (0.0, 0.5)), (True, (29.5, 30.0)),
                (True, (10.0, 10.0))]
     for rate in (c["gps_rate"].options[0], c["gps_rate"].options[-1]):
         for corner in corners:
             for on, window in outages:
-                values = {"gps_rate": rate, **{k: 10.0 ** v for k, v in corner.items()}, "outage_on": on,
-                          "outage": window}
+                values = {"gps_rate": rate, **corner, "outage_on": on, "outage": window}
                 if check_render(live, values):
                     title = live.view.axes[0].get_title()
                     assert f"GPS {rate:g} Hz" in title and (("outage" in title) == (on and window[0] < window[1]))

@@ -34,7 +34,7 @@ from .outages import outage_mask
 from .params import CalibrationParams
 from .simulation import simulate
 
-__all__ = ["ENSEMBLES", "LIVE_FIGSIZE", "valid_gps_rates", "CalibrationDemo", "compute_calibration_demo",
+__all__ = ["ENSEMBLES", "LIVE_FIGSIZE", "W_STOPS", "valid_gps_rates", "CalibrationDemo", "compute_calibration_demo",
            "CalibrationDemoFigure", "draw_calibration_demo", "calibration_controls"]
 
 #: how the demo's ensemble is drawn: at the fixes only, or by the full 200 Hz simulation
@@ -44,6 +44,11 @@ ENSEMBLES = ("fixes", "simulate")
 #: so the image is shown pixel for pixel, its smallest text (9 pt) 11 px; with the controls in two rows
 #: above it the whole demo fits that window (tests/test_browser_demos.py)
 LIVE_FIGSIZE = (9.1, 4.7)
+#: the W slider's stops, (m/s²)²: the R10 preferred numbers (1, 1.25, 1.6, 2, 2.5, 3.15, 4, 5, 6.3, 8: ten
+#: steps a decade, 10 ** (k / 10) rounded) from 1e-6 to 1e-2; the course's W = 4e-4 is one of them, exactly
+#: (a log slider of base 10 has no stop at 4e-4: it would move the default to 10 ** -3.4 = 3.98e-4)
+W_STOPS = tuple(float(f"{m}e{e}") for e in range(-6, -2) for m in ("1", "1.25", "1.6", "2", "2.5", "3.15", "4", "5",
+                                                                     "6.3", "8")) + (1e-2,)
 
 
 def valid_gps_rates(imu_rate: float = 200.0, max_rate: float = 25.0) -> tuple[float, ...]:
@@ -269,7 +274,7 @@ class CalibrationDemoFigure:
         lo, hi = demo.ratio_band
         gap = "" if demo.outage is None else f", outage {demo.outage[0]:g}–{demo.outage[1]:g} s"
         # short titles in normal weight: text is most of the cost of a redraw
-        self.axes[0].set_title(f"Errors with ±2σ: GPS {p.gps_rate:g} Hz, W {p.W:.1e} (m/s²)², GPS σ_p "
+        self.axes[0].set_title(f"Errors with ±2σ: GPS {p.gps_rate:g} Hz, W {p.W:.2e} (m/s²)², GPS σ_p "
                                f"{np.sqrt(p.gps_pos_var):.2g} m, bias σ₀ {np.sqrt(p.bias_var):.2g} m/s²{gap}",
                                fontsize=10, fontweight="normal")
         self.axes[-1].set_title(f"s/σ inside [{lo:.3f}, {hi:.3f}] at {100 * demo.inside_fraction:.1f} % "
@@ -292,8 +297,11 @@ def calibration_controls() -> dict:
     """The calibration demo's controls (ipywidgets), by name, at the default parameters.
 
     ``gps_rate`` (Hz, a selection slider of the rates that divide 200 Hz), ``W``
-    ((m/s²)², log scale), ``gps_pos_sigma`` (m, log scale), ``bias_sigma`` (prior σ of the
-    bias, m/s², log scale), ``outage_on`` (checkbox) and ``outage`` (window, s).
+    ((m/s²)², a selection slider of :data:`W_STOPS`), ``gps_pos_sigma`` (m, log scale), ``bias_sigma``
+    (prior σ of the bias, m/s², log scale), ``outage_on`` (checkbox) and ``outage`` (window, s).
+    Every default is a stop of its slider (a log slider's stops are ``base ** (min + k * step)``): the
+    browser moves a value that is not onto the nearest stop when it draws the slider, and the figure
+    would then show other numbers than the defaults.
     """
     import ipywidgets as w
 
@@ -307,8 +315,8 @@ def calibration_controls() -> dict:
     return {
         "gps_rate": w.SelectionSlider(options=valid_gps_rates(), value=5.0, description="GPS rate [Hz]",
                                       style=style, layout=width(255)),
-        "W": w.FloatLogSlider(value=4e-4, base=10, min=-6, max=-2, step=0.1, readout_format=".1e",
-                              description="IMU noise W [(m/s²)²]", style=style, layout=width(310)),
+        "W": w.SelectionSlider(options=[(f"{v:.2e}", v) for v in W_STOPS], value=4e-4,
+                               description="IMU noise W [(m/s²)²]", style=style, layout=width(320)),
         "gps_pos_sigma": w.FloatLogSlider(value=1.0, base=10, min=-1, max=1, step=0.05, readout_format=".2f",
                                           description="GPS σ_p [m]", style=style, layout=width(245)),
         "bias_sigma": w.FloatLogSlider(value=0.1, base=10, min=-3, max=0, step=0.1, readout_format=".3f",
