@@ -77,3 +77,23 @@ def off_grid_defaults(controls: dict) -> list:
                 out.append((name, v, nearest))
     return out
 
+
+def legend_is_outside_the_panels(view) -> bool:
+    """After a draw of ``view.fig``: its legend, title and other figure texts overlap no panel (so no
+    curve, at any setting, can lie under them), and the legend and texts do not overlap one another.
+    Returns True (asserts otherwise)."""
+    fig = view.fig
+    renderer = fig.canvas.get_renderer()
+    panels = [ax.get_window_extent(renderer) for ax in fig.axes]
+    legends = [lg.get_window_extent(renderer) for lg in fig.legends]
+    # the figure's texts, its title (suptitle) among them
+    texts = [t.get_window_extent(renderer) for t in fig.texts if t.get_visible() and t.get_text()]
+    assert legends, "the figure has no legend of its own (fig.legend)"
+    assert fig.get_suptitle() and len(texts) >= 1
+    for box in legends + texts:
+        hit = [p for p in panels if box.overlaps(p)]
+        assert not hit, f"{box} overlaps a panel {hit[0]}"
+    for i, a in enumerate(legends + texts):
+        for b in (legends + texts)[i + 1:]:
+            assert not a.overlaps(b), f"{a} overlaps {b}"
+    return True

@@ -21,7 +21,7 @@ from kfcal_helpers.coop.exercises import EXERCISES, check_lost_directions, check
 from kfcal_helpers.coop.fast import run_filter_fast
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
 
-from demo_checks import check_render, fast_draw_is_full_draw, off_grid_defaults, png_size
+from demo_checks import check_render, fast_draw_is_full_draw, legend_is_outside_the_panels, off_grid_defaults, png_size
 
 SHORT = replace(CoopParams(), duration=20.0)
 
@@ -366,6 +366,7 @@ def test_coop_demo_over_a_grid_of_controls(log, filter):
             values = {"filter": filter, "q_scale": q, **{f"m{i}": i in subset for i in range(5)}}
             ok = outcome[q, label] = check_render(live, values)
             if ok:
+                assert legend_is_outside_the_panels(live.view)
                 title = live.view.fig.get_suptitle()
                 assert title.startswith(f"{filter.upper()}, Q = {q:.3g} Qtrue, measurements: "
                                         + ", ".join(MEASUREMENT_NAMES[i] for i in subset) + "\n")
