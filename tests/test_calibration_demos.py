@@ -9,7 +9,7 @@ from matplotlib.figure import Figure
 from scipy import stats
 
 from kfcal_helpers.calibration import (CalibrationParams, covariance_sequence, outage_mask, run_filterpy, simulate)
-from kfcal_helpers.calibration.demos import (LIVE_FIGSIZE, CalibrationDemo, CalibrationDemoFigure,
+from kfcal_helpers.calibration.demos import (LIVE_FIGSIZE, W_STOPS, CalibrationDemo, CalibrationDemoFigure,
                                              calibration_controls, compute_calibration_demo, draw_calibration_demo,
                                              valid_gps_rates)
 from kfcal_helpers.calibration.exercises import (EXERCISES, check_demo_first_fix_sigma, check_demo_ratio_band,
@@ -17,7 +17,7 @@ from kfcal_helpers.calibration.exercises import (EXERCISES, check_demo_first_fix
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
 from kfcal_helpers.exercises import ROUNDED_HINT
 
-from demo_checks import check_render, fast_draw_is_full_draw
+from demo_checks import check_render, fast_draw_is_full_draw, legend_is_outside_the_panels, off_grid_defaults
 
 P = CalibrationParams()
 HINTS = {i: EXERCISES[i].hints for i in ("17.1", "17.2")}
@@ -103,14 +103,20 @@ def test_calibration_figure_updates_in_place():
     assert [tuple(ax.lines) for ax in view.axes] == lines  # the same artists, new data
     assert len(view.spans) == 3 and len(view.axes[0].patches) == 1
     assert view.axes[0].lines[0].get_xdata().size == P.n_imu
-    assert "GPS 2 Hz" in view.axes[0].get_title() and "outage 5–8 s" in view.axes[0].get_title()
+    title = view.fig.get_suptitle()
+    assert "GPS 2 Hz" in title and "outage 5–8 s" in title
+    # the ensemble's share is about all three panels: in the figure's title, not over one panel
+    assert "\nEnsemble, all three panels: s/σ inside [" in title and "of (GPS epoch, state) pairs" in title
+    assert all(ax.get_title(loc) == "" for ax in view.axes for loc in ("left", "center", "right"))
+    assert view.note.get_text() == "y axes scaled to t ≥ 2 s"
     for ax in view.axes:
         assert "[" in ax.get_ylabel()
     assert "[s]" in view.axes[-1].get_xlabel()
     png = figure_png(view.fig)
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
     fig = draw_calibration_demo(compute_calibration_demo(n_runs=20))
-    assert len(fig.axes) == 3 and "GPS 5 Hz" in fig.axes[0].get_title()
+    assert len(fig.axes) == 3 and "GPS 5 Hz" in fig.get_suptitle()
+    assert draw_calibration_demo(compute_calibration_demo(n_runs=20), t_zoom=0.0).texts[0].get_text() == ""
     with pytest.raises(ValueError, match="demo"):
         view.update("demo")
     with pytest.raises(ValueError, match="figure"):
@@ -122,7 +128,7 @@ def test_calibration_fast_draw_is_the_full_draw():
     view = CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE))
     for kw in ({"outage": (12.0, 18.0)}, {"gps_rate": 25.0}, {"gps_rate": 1.0, "outage": (0.0, 30.0)},
                {"W": 1e-6, "gps_pos_var": 0.01, "bias_var": 1e-6}):
-        view.update(compute_calibration_demo(n_runs=20, **kw))
+        view.update(compute_calibration_demo(n_runs=200, **kw))  # the live demo's 200 runs: the legend stays
         assert fast_draw_is_full_draw(view)
         assert len(view.spans) == (3 if "outage" in kw else 0)
         assert all(s.get_visible() == ("outage" in kw) for s in view.axes[0].patches)
@@ -130,6 +136,10 @@ def test_calibration_fast_draw_is_the_full_draw():
     live = LiveDemo(calibration_controls(), calibration_demo_for, view)
     live.controls["W"].value = 1e-3
     assert not live.failed and live.image.value == figure_png(view.fig) and view.background.full_draws == 1
+    # the kept background holds the legend and the note: a change of their text renders it again
+    view.update(compute_calibration_demo(n_runs=20))
+    assert "(20 runs)" in view.legend.get_texts()[2].get_text() and fast_draw_is_full_draw(view)
+    assert view.background.full_draws == 2
 
 
 def test_calibration_demo_keeps_its_draws_not_its_numbers():
@@ -158,6 +168,16 @@ def test_calibration_controls_match_the_compute_function():
     v = {k: w.value for k, w in c.items()}
     assert (v["gps_rate"], v["W"], v["gps_pos_sigma"] ** 2, v["bias_sigma"] ** 2) == (P.gps_rate, P.W, P.gps_pos_var,
                                                                                       pytest.approx(P.bias_var))
+    assert P.W in W_STOPS and len(W_STOPS) == 41 and np.all(np.diff(W_STOPS) > 0)
+    # the stops are those of a log slider of ten steps a decade, rounded to the R10 preferred numbers
+    assert np.allclose(np.log10(W_STOPS), np.linspace(-6, -2, 41), rtol=0, atol=0.005)
+
+
+def test_calibration_slider_defaults_are_stops_of_their_sliders():
+    # a default between two stops is moved to the nearest one by the browser when it draws the slider
+    # (W = 4e-4 on a log slider of 0.1-decade steps became 10 ** -3.4 = 3.98e-4, and the live figure showed
+    # other numbers than the lesson's)
+    assert off_grid_defaults(calibration_controls()) == []
 
 
 
@@ -302,17 +322,19 @@ def test_calibration_demo_over_a_grid_of_controls():
     live = LiveDemo(calibration_controls(), calibration_demo_for,
                     CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE)))
     c = live.controls
-    corners = [{"W": c["W"].min, "gps_pos_sigma": c["gps_pos_sigma"].min, "bias_sigma": c["bias_sigma"].min},
-               {"W": c["W"].max, "gps_pos_sigma": c["gps_pos_sigma"].max, "bias_sigma": c["bias_sigma"].max}]
+    corners = [{"W": c["W"].options[0][1], "gps_pos_sigma": 10.0 ** c["gps_pos_sigma"].min,
+                "bias_sigma": 10.0 ** c["bias_sigma"].min},
+               {"W": c["W"].options[-1][1], "gps_pos_sigma": 10.0 ** c["gps_pos_sigma"].max,
+                "bias_sigma": 10.0 ** c["bias_sigma"].max}]
     outages = [(False, (12.0, 18.0)), (True, (0.0, 30.0)), (True, (0.0, 0.5)), (True, (29.5, 30.0)),
                (True, (10.0, 10.0))]
     for rate in (c["gps_rate"].options[0], c["gps_rate"].options[-1]):
         for corner in corners:
             for on, window in outages:
-                values = {"gps_rate": rate, **{k: 10.0 ** v for k, v in corner.items()}, "outage_on": on,
-                          "outage": window}
+                values = {"gps_rate": rate, **corner, "outage_on": on, "outage": window}
                 if check_render(live, values):
-                    title = live.view.axes[0].get_title()
+                    assert legend_is_outside_the_panels(live.view)
+                    title = live.view.fig.get_suptitle().split("\n")[0]
                     assert f"GPS {rate:g} Hz" in title and (("outage" in title) == (on and window[0] < window[1]))
 
 

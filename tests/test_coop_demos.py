@@ -21,7 +21,7 @@ from kfcal_helpers.coop.exercises import EXERCISES, check_lost_directions, check
 from kfcal_helpers.coop.fast import run_filter_fast
 from kfcal_helpers.demos import LiveDemo, describe_controls, figure_png
 
-from demo_checks import check_render, fast_draw_is_full_draw, png_size
+from demo_checks import check_render, fast_draw_is_full_draw, legend_is_outside_the_panels, off_grid_defaults, png_size
 
 SHORT = replace(CoopParams(), duration=20.0)
 
@@ -141,6 +141,11 @@ def test_coop_figure_and_controls(log):
     assert set(c) == {"filter", "q_scale", "m0", "m1", "m2", "m3", "m4"}
     assert c["filter"].value == "ekf" and c["q_scale"].value == pytest.approx(TUNED_Q_SCALE["ekf"])
     assert [c[f"m{i}"].description for i in range(5)] == list(MEASUREMENT_NAMES)
+
+
+def test_coop_slider_defaults_are_stops_of_their_sliders():
+    # a default between two stops is moved to the nearest one by the browser when it draws the slider
+    assert off_grid_defaults(coop_controls()) == []
 
 
 
@@ -361,6 +366,7 @@ def test_coop_demo_over_a_grid_of_controls(log, filter):
             values = {"filter": filter, "q_scale": q, **{f"m{i}": i in subset for i in range(5)}}
             ok = outcome[q, label] = check_render(live, values)
             if ok:
+                assert legend_is_outside_the_panels(live.view)
                 title = live.view.fig.get_suptitle()
                 assert title.startswith(f"{filter.upper()}, Q = {q:.3g} Qtrue, measurements: "
                                         + ", ".join(MEASUREMENT_NAMES[i] for i in subset) + "\n")

@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from kfcal_helpers.demos import (DEMO_FAILURES, CachedBackground, LiveDemo, describe_controls, failure_message,
                                  figure_png, new_figure, require_finite_demo, smallest_text)
 
-from demo_checks import fast_draw_is_full_draw, png_size
+from demo_checks import fast_draw_is_full_draw, off_grid_defaults, png_size, slider_stops
 
 
 @dataclasses.dataclass
@@ -276,3 +276,23 @@ def test_jupyterlab_asks_no_news_question_in_this_environment():
     assert not error
     notification = overrides["@jupyterlab/apputils-extension:notification"]
     assert notification["fetchNews"] == "false" and notification["checkForUpdates"] is False
+
+
+def test_off_grid_defaults_finds_a_default_between_two_stops():
+    # the check the demos' tests apply to their controls: the W slider notebook 17 had (4e-4 is no stop of
+    # 10 ** (-6 + 0.1 k): the browser moved it to 10 ** -3.4 = 3.98e-4) and other kinds of slider
+    controls = {
+        "W": w.FloatLogSlider(value=4e-4, base=10, min=-6, max=-2, step=0.1),
+        "sigma": w.FloatLogSlider(value=1.0, base=10, min=-1, max=1, step=0.05),
+        "bias": w.FloatLogSlider(value=0.1, base=10, min=-3, max=0, step=0.1),
+        "gain": w.FloatSlider(value=0.25, min=0.0, max=1.0, step=0.1),
+        "window": w.FloatRangeSlider(value=(12.0, 18.25), min=0.0, max=30.0, step=0.5),
+        "rate": w.SelectionSlider(options=[1.0, 2.0, 5.0], value=5.0),
+        "noise": w.SelectionSlider(options=[("4e-4", 4e-4), ("5e-4", 5e-4)], value=4e-4),
+        "on": w.Checkbox(value=True),
+    }
+    found = off_grid_defaults(controls)
+    assert [(name, value) for name, value, _ in found] == [("W", 4e-4), ("gain", 0.25), ("window", 18.25)]
+    assert found[0][2] == pytest.approx(10 ** -3.4, rel=1e-12)
+    assert len(slider_stops(controls["W"])) == 41 and slider_stops(controls["on"]) is None
+    assert slider_stops(controls["noise"]) == [4e-4, 5e-4]

@@ -8,10 +8,11 @@ realization (``simulate``) and a 200-realization ensemble drawn at the fixes
 the next redraw with the same seed and GPS rate), whose errors come from the
 filter's error recursion (:func:`~kfcal_helpers.calibration.engine.filter_errors_at_fixes`, the
 numbers ``batch_filter`` gives on the same draws); the ensemble's spread is compared with the
-filter's sigma at every fix.  :class:`CalibrationDemoFigure` draws the errors with their +-2 sigma
-bands; it builds its figure once and :meth:`~CalibrationDemoFigure.update` only replaces the data,
-and :meth:`~CalibrationDemoFigure.draw` renders it with the x axes (the same for every setting)
-kept from the first render, so a redraw renders only what changed.  :func:`calibration_controls` builds the sliders; the notebook wires
+filter's sigma at every GPS epoch (a 1/gps_rate time slot, its fix dropped during an outage).
+:class:`CalibrationDemoFigure` draws the errors with their +-2 sigma bands; it builds its figure once and
+:meth:`~CalibrationDemoFigure.update` only replaces the data, and :meth:`~CalibrationDemoFigure.draw`
+renders it with the x axes and the legend (the same for every setting) kept from the first render, so a
+redraw renders only what changed.  :func:`calibration_controls` builds the sliders; the notebook wires
 them to the figure with the shared :class:`kfcal_helpers.demos.LiveDemo`.  The benchmark
 (``benchmarks/bench_demos.py``) and the tests time and check the compute function on its own.
 """
@@ -34,7 +35,7 @@ from .outages import outage_mask
 from .params import CalibrationParams
 from .simulation import simulate
 
-__all__ = ["ENSEMBLES", "LIVE_FIGSIZE", "valid_gps_rates", "CalibrationDemo", "compute_calibration_demo",
+__all__ = ["ENSEMBLES", "LIVE_FIGSIZE", "W_STOPS", "valid_gps_rates", "CalibrationDemo", "compute_calibration_demo",
            "CalibrationDemoFigure", "draw_calibration_demo", "calibration_controls"]
 
 #: how the demo's ensemble is drawn: at the fixes only, or by the full 200 Hz simulation
@@ -44,6 +45,11 @@ ENSEMBLES = ("fixes", "simulate")
 #: so the image is shown pixel for pixel, its smallest text (9 pt) 11 px; with the controls in two rows
 #: above it the whole demo fits that window (tests/test_browser_demos.py)
 LIVE_FIGSIZE = (9.1, 4.7)
+#: the W slider's stops, (m/s²)²: the R10 preferred numbers (1, 1.25, 1.6, 2, 2.5, 3.15, 4, 5, 6.3, 8: ten
+#: steps a decade, 10 ** (k / 10) rounded) from 1e-6 to 1e-2; the course's W = 4e-4 is one of them, exactly
+#: (a log slider of base 10 has no stop at 4e-4: it would move the default to 10 ** -3.4 = 3.98e-4)
+W_STOPS = tuple(float(f"{m}e{e}") for e in range(-6, -2) for m in ("1", "1.25", "1.6", "2", "2.5", "3.15", "4", "5",
+                                                                     "6.3", "8")) + (1e-2,)
 
 
 def valid_gps_rates(imu_rate: float = 200.0, max_rate: float = 25.0) -> tuple[float, ...]:
@@ -203,13 +209,22 @@ class CalibrationDemoFigure:
     :class:`CalibrationDemo` into the same lines (a redraw then only re-renders).
 
     Three panels (position, velocity, bias): one realization's error at 200 Hz, the filter's
-    +-2 sigma, the ensemble's +-2 s at the fixes, the outage shaded (above the grid, under the curves).
-    :meth:`draw` renders it onto its Agg canvas with the x axes kept from the first render (a
-    :class:`kfcal_helpers.demos.CachedBackground`), the same image as ``fig.canvas.draw()``.
+    +-2 sigma, the ensemble's +-2 s at the GPS epochs, the outage shaded (above the grid, under the curves).
+    Above the panels, outside them (so they never cover a curve): the figure's two-line title (the
+    settings; the share of (GPS epoch, state) pairs, over all three panels, whose s/sigma is inside
+    its pointwise band), then a row with the note on the y axes' scale at its left and the legend at
+    its right.  The rows have fixed heights in inches, the same in the live view and a larger figure.
+    :meth:`draw` renders it onto its Agg canvas with the x axes, the legend and the note kept from the first
+    render (a :class:`kfcal_helpers.demos.CachedBackground`), the same image as ``fig.canvas.draw()``.
     ``figure``: a Figure to draw on (e.g. ``matplotlib.figure.Figure()`` for a widget, outside pyplot); default a new
     pyplot figure.  ``t_zoom`` (s): the y axes are scaled to the curves after ``t_zoom`` (the
     first seconds, with the 10 m prior sigma of the position, would flatten everything else).
     """
+
+    #: inches above the panels: the two-line title (10 pt) and the row of the legend (9 pt)
+    HEADER_IN = 0.74
+    #: inches under the panels: the tick labels and the time label
+    FOOTER_IN = 0.47
 
     def __init__(self, figure=None, t_zoom: float = 2.0):
         t_zoom = require_finite("t_zoom", t_zoom)
@@ -228,17 +243,31 @@ class CalibrationDemoFigure:
             ens_down, = ax.plot([], [], ".", color="C0", ms=3)
             self.lines.append((err, up, down, ens_up, ens_down))
             ax.set_ylabel(_CAL_LABELS[k], fontsize=9)
-        self.legend = self.axes[0].legend(loc="upper right", ncol=3, fontsize=9)
         self.axes[-1].set_xlabel("time $t$ [s]")
-        self.fig.subplots_adjust(left=0.095, right=0.985, bottom=0.1, top=0.93, hspace=0.42)
+        height = self.fig.get_figheight()
+        left, right, top = 0.095, 0.985, 1 - self.HEADER_IN / height
+        self.fig.subplots_adjust(left=left, right=right, bottom=self.FOOTER_IN / height, top=top, hspace=0.2)
+        # the legend and the note on the y scale in a row of their own between the title and the panels: outside
+        # every panel, so no setting of the sliders puts a curve under them
+        self.legend = self.fig.legend(handles=[self.lines[0][i] for i in (0, 1, 3)], loc="lower right", bbox_to_anchor=(right, top),
+                                      ncol=3, fontsize=9, frameon=False, borderaxespad=0.3, borderpad=0.1,
+                                      columnspacing=1.2)
+        self.note = self.fig.text(left, top + 0.04 / height, "", fontsize=9, ha="left", va="bottom")
+        self.title = self.fig.suptitle("", y=1 - 0.05 / height, va="top", fontsize=10, fontweight="normal")
         # the outage shading, one per panel, moved by update (hidden without an outage); zorder between the
         # axes' grid (1.5) and the lines (2), so it is drawn after the kept x axes
         self._shades = [ax.axvspan(0.0, 0.0, color="C1", alpha=0.2, lw=0, zorder=1.6, visible=False)
                         for ax in self.axes]
         self.spans = []  #: the outage shading drawn (one per panel, or none without an outage)
-        # the x axes (time, ticks, grid, label) only change with the time span: drawn once
-        self.background = CachedBackground(self.fig, [ax.xaxis for ax in self.axes],
-                                           key=lambda: tuple(ax.get_xlim() for ax in self.axes))
+        # the x axes (time, ticks, grid, label) only change with the time span, the legend and the note with
+        # their texts: drawn once, again when these change
+        self.background = CachedBackground(self.fig, [*(ax.xaxis for ax in self.axes), self.legend, self.note],
+                                           key=self._background_key)
+
+    def _background_key(self):
+        """What the kept background depends on: the x limits, the legend's texts and the note."""
+        return (tuple(ax.get_xlim() for ax in self.axes), tuple(t.get_text() for t in self.legend.get_texts()),
+                self.note.get_text())
 
     def update(self, demo: CalibrationDemo):
         """Draw ``demo`` into the figure; returns the Figure."""
@@ -246,7 +275,7 @@ class CalibrationDemoFigure:
             raise ValueError(f"demo must be a CalibrationDemo, got {type(demo).__name__}")
         p = demo.params
         late, late_fix = demo.t >= self.t_zoom, demo.t_gps >= self.t_zoom
-        zoom = f"; y zoomed past t = {self.t_zoom:g} s" if late_fix.any() and self.t_zoom > demo.t[0] else ""
+        zoomed = bool(late_fix.any() and self.t_zoom > demo.t[0])
         if not late_fix.any():
             late, late_fix = np.ones_like(late), np.ones_like(late_fix)
         for shade in self._shades:
@@ -266,19 +295,19 @@ class CalibrationDemoFigure:
             ax.set_ylim(-1.15 * top, 1.15 * top)
         self.axes[0].set_xlim(demo.t[0], demo.t[-1])
         self.legend.get_texts()[2].set_text(f"ensemble $\\pm 2s$ ({demo.n_runs} runs)")
+        self.note.set_text(f"y axes scaled to t ≥ {self.t_zoom:g} s" if zoomed else "")
         lo, hi = demo.ratio_band
         gap = "" if demo.outage is None else f", outage {demo.outage[0]:g}–{demo.outage[1]:g} s"
-        # short titles in normal weight: text is most of the cost of a redraw
-        self.axes[0].set_title(f"Errors with ±2σ: GPS {p.gps_rate:g} Hz, W {p.W:.1e} (m/s²)², GPS σ_p "
-                               f"{np.sqrt(p.gps_pos_var):.2g} m, bias σ₀ {np.sqrt(p.bias_var):.2g} m/s²{gap}",
-                               fontsize=10, fontweight="normal")
-        self.axes[-1].set_title(f"s/σ inside [{lo:.3f}, {hi:.3f}] at {100 * demo.inside_fraction:.1f} % "
-                                f"of (fix, state) pairs{zoom}",
-                                fontsize=9, fontweight="normal")
+        # short lines in normal weight: text is most of the cost of a redraw
+        self.title.set_text(f"Errors with ±2σ: GPS {p.gps_rate:g} Hz, W {p.W:.2e} (m/s²)², GPS σ_p "
+                            f"{np.sqrt(p.gps_pos_var):.2g} m, bias σ₀ {np.sqrt(p.bias_var):.2g} m/s²{gap}\n"
+                            f"Ensemble, all three panels: s/σ inside [{lo:.3f}, {hi:.3f}] at "
+                            f"{100 * demo.inside_fraction:.1f} % of (GPS epoch, state) pairs")
         return self.fig
 
     def draw(self):
-        """Render the figure onto its Agg canvas, x axes kept from the first render; returns the Figure
+        """Render the figure onto its Agg canvas, the x axes, legend and note kept from the first render
+        (rendered again when they change); returns the Figure
         (then ``kfcal_helpers.demos.figure_png(fig, drawn=True)``)."""
         return self.background.draw()
 
@@ -292,8 +321,11 @@ def calibration_controls() -> dict:
     """The calibration demo's controls (ipywidgets), by name, at the default parameters.
 
     ``gps_rate`` (Hz, a selection slider of the rates that divide 200 Hz), ``W``
-    ((m/s²)², log scale), ``gps_pos_sigma`` (m, log scale), ``bias_sigma`` (prior σ of the
-    bias, m/s², log scale), ``outage_on`` (checkbox) and ``outage`` (window, s).
+    ((m/s²)², a selection slider of :data:`W_STOPS`), ``gps_pos_sigma`` (m, log scale), ``bias_sigma``
+    (prior σ of the bias, m/s², log scale), ``outage_on`` (checkbox) and ``outage`` (window, s).
+    Every default is a stop of its slider (a log slider's stops are ``base ** (min + k * step)``): the
+    browser moves a value that is not onto the nearest stop when it draws the slider, and the figure
+    would then show other numbers than the defaults.
     """
     import ipywidgets as w
 
@@ -307,8 +339,8 @@ def calibration_controls() -> dict:
     return {
         "gps_rate": w.SelectionSlider(options=valid_gps_rates(), value=5.0, description="GPS rate [Hz]",
                                       style=style, layout=width(255)),
-        "W": w.FloatLogSlider(value=4e-4, base=10, min=-6, max=-2, step=0.1, readout_format=".1e",
-                              description="IMU noise W [(m/s²)²]", style=style, layout=width(310)),
+        "W": w.SelectionSlider(options=[(f"{v:.2e}", v) for v in W_STOPS], value=4e-4,
+                               description="IMU noise W [(m/s²)²]", style=style, layout=width(320)),
         "gps_pos_sigma": w.FloatLogSlider(value=1.0, base=10, min=-1, max=1, step=0.05, readout_format=".2f",
                                           description="GPS σ_p [m]", style=style, layout=width(245)),
         "bias_sigma": w.FloatLogSlider(value=0.1, base=10, min=-3, max=0, step=0.1, readout_format=".3f",

@@ -129,10 +129,18 @@ class CoopDemoFigure:
     """The cooperative-localization demo's figure, built once; :meth:`update` puts a new
     :class:`CoopDemo` into the same lines.  Six panels (UGV in the top row, UAV in the bottom
     row): the estimation error and the filter's +-2 sigma bounds.  :meth:`draw` renders it onto its Agg
-    canvas with the x axes kept from the first render (a :class:`kfcal_helpers.demos.CachedBackground`),
+    canvas with the x axes and the legend kept from the first render (a :class:`kfcal_helpers.demos.CachedBackground`),
     the same image as ``fig.canvas.draw()``.  ``figure``: a matplotlib
     Figure to draw into (e.g. ``Figure(figsize=LIVE_FIGSIZE)`` for the live view), else a new
-    pyplot figure."""
+    pyplot figure.  Above the panels, outside them (so they never cover a curve): the figure's
+    two-line title (filter, Q, measurements; the NIS against its bounds), then the legend in a row of
+    its own, at the right.  The rows have fixed heights in inches, the same in the live view and a
+    larger figure."""
+
+    #: inches above the panels: the two-line title (10 pt) and the row of the legend (9 pt)
+    HEADER_IN = 0.74
+    #: inches under the panels: the tick labels and the time label
+    FOOTER_IN = 0.5
 
     def __init__(self, figure=None):
         self.fig = new_figure(figure, (11.0, 5.4))
@@ -146,10 +154,19 @@ class CoopDemoFigure:
             ax.set_ylabel(f"error {STATE_LABELS[i]}")
         for ax in self.axes[-1]:
             ax.set_xlabel("time $t$ [s]")
-        self.axes[0, 0].legend(loc="upper right", fontsize=9)
-        self.fig.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.86, wspace=0.38, hspace=0.14)
-        # the x axes (time, ticks, grid, label) only change with the log's time span: drawn once
-        self.background = CachedBackground(self.fig, [ax.xaxis for ax in self.axes.flat],
+        height = self.fig.get_figheight()
+        right, top = 0.98, 1 - self.HEADER_IN / height
+        self.fig.subplots_adjust(left=0.08, right=right, bottom=self.FOOTER_IN / height, top=top, wspace=0.38,
+                                 hspace=0.14)
+        # the legend in a row of its own between the title and the panels: outside every panel, so no
+        # setting of the controls (a large Q widens the bounds to the panel's edge) puts a curve under it
+        self.legend = self.fig.legend(handles=list(self.lines[0][:2]), loc="lower right", bbox_to_anchor=(right, top),
+                                      ncol=2, fontsize=9, frameon=False, borderaxespad=0.3, borderpad=0.1,
+                                      columnspacing=1.2)
+        self.title = self.fig.suptitle("", y=1 - 0.05 / height, va="top", fontsize=10)
+        # the x axes (time, ticks, grid, label) only change with the log's time span, and the legend never:
+        # drawn once
+        self.background = CachedBackground(self.fig, [*(ax.xaxis for ax in self.axes.flat), self.legend],
                                            key=lambda: tuple(ax.get_xlim() for ax in self.axes.flat))
 
     def update(self, demo: CoopDemo):
@@ -165,13 +182,13 @@ class CoopDemoFigure:
         self.axes[0, 0].set_xlim(demo.t[0], demo.t[-1])
         lo, hi = demo.nis_bounds
         names = ", ".join(MEASUREMENT_NAMES[i] for i in demo.measurements)
-        self.fig.suptitle(f"{demo.filter.upper()}, Q = {demo.q_scale:.3g} Qtrue, measurements: {names}\n"
-                          f"errors with ±2σ; time-averaged NIS {demo.nis_mean:.2f}, bounds [{lo:.2f}, {hi:.2f}] "
-                          f"({demo.nis_dim} dof)", fontsize=10)
+        self.title.set_text(f"{demo.filter.upper()}, Q = {demo.q_scale:.3g} Qtrue, measurements: {names}\n"
+                            f"errors with ±2σ; time-averaged NIS {demo.nis_mean:.2f}, bounds [{lo:.2f}, {hi:.2f}] "
+                            f"({demo.nis_dim} dof)")
         return self.fig
 
     def draw(self):
-        """Render the figure onto its Agg canvas, x axes kept from the first render; returns the Figure
+        """Render the figure onto its Agg canvas, the x axes and the legend kept from the first render; returns the Figure
         (then ``kfcal_helpers.demos.figure_png(fig, drawn=True)``)."""
         return self.background.draw()
 
