@@ -148,9 +148,12 @@ def merge(rendered, old):
 
 def execute(nb, path: Path, timeout: int = 1200):
     """Run ``nb`` (which lives at ``path``) top to bottom in a fresh kernel, in ``path``'s folder, with
-    ``KFCAL_QUIET=1``; the course log (``KFCAL_COURSE_LOG``) only for :data:`COURSE_LOG_LESSONS`."""
+    ``KFCAL_QUIET=1``; the course log (``KFCAL_COURSE_LOG``) only for :data:`COURSE_LOG_LESSONS`.  The
+    kernel listens on Unix sockets (:func:`kfcal_helpers.kernels.over_ipc`; TCP on Windows)."""
     from jupyter_client import AsyncKernelManager
     from nbclient import NotebookClient
+
+    from ..kernels import over_ipc
 
     saved = dict(os.environ)
     os.environ["KFCAL_QUIET"] = "1"
@@ -158,9 +161,8 @@ def execute(nb, path: Path, timeout: int = 1200):
         os.environ.pop("KFCAL_COURSE_LOG", None)
     sockets = tempfile.mkdtemp(prefix="kfcal-kernel-")
     try:
-        # the kernel on Unix sockets of its own (no TCP port to race for, no unencrypted-TCP warning)
-        km = (AsyncKernelManager(kernel_name="python3", transport="ipc", ip=os.path.join(sockets, "k"))
-              if os.name != "nt" else None)
+        # the kernel on Unix sockets of its own (kfcal_helpers.kernels: no TCP port to race for); TCP on Windows
+        km = over_ipc(AsyncKernelManager, folder=sockets)(kernel_name="python3")
         NotebookClient(nb, km=km, timeout=timeout, kernel_name="python3",
                        resources={"metadata": {"path": str(path.parent)}}).execute()
     finally:
