@@ -1,49 +1,18 @@
 """Test-session settings shared by the unit tests and the notebooks run under nbval, and how
 pytest-xdist groups the test files (files sharing a session fixture run on one worker)."""
 
-import atexit
 import os
-import shutil
-import tempfile
-import uuid
 
 import pytest
+
+from kfcal_helpers.kernels import over_ipc
 
 # Notebooks run under nbval inherit this environment: no progress bars.
 os.environ["KFCAL_QUIET"] = "1"
 
 
-_SOCKETS = []  # the folder of this process's kernel sockets, made when the first kernel manager needs it
-
-
-def over_ipc(manager_class):
-    """A subclass of the jupyter_client kernel manager class ``manager_class`` whose kernels listen on
-    Unix sockets (IPC) under a path no other kernel uses, instead of TCP ports; ``manager_class`` itself
-    on Windows, where zmq has no IPC transport.
-
-    Over TCP, jupyter_client picks a kernel's five ports by binding port 0 and closing the socket;
-    the kernel binds them when it has started, a second or more later on a busy machine.  A port
-    taken meanwhile by any other process (another xdist worker's kernel, another test run) makes the
-    kernel exit at once (``ZMQError: Address already in use``, on its stderr, which nbval discards),
-    and nbval reports "Kernel died before replying to kernel_info".  Over IPC there is nothing to
-    race for.
-    """
-    if os.name == "nt":
-        return manager_class
-
-    def __init__(self, **kwargs):
-        if not _SOCKETS:
-            _SOCKETS.append(tempfile.mkdtemp(prefix="kfcal-kernels-"))  # short: a socket path has ~100 bytes
-            atexit.register(shutil.rmtree, _SOCKETS[0], ignore_errors=True)
-        kwargs.setdefault("transport", "ipc")
-        kwargs.setdefault("ip", os.path.join(_SOCKETS[0], uuid.uuid4().hex[:12]))  # sockets <ip>-1 .. <ip>-5
-        manager_class.__init__(self, **kwargs)
-
-    return type(f"IPC{manager_class.__name__}", (manager_class,), {"__init__": __init__})
-
-
 def _notebook_kernels_over_ipc():
-    """nbval's notebook kernels over IPC (see :func:`over_ipc`)."""
+    """nbval's notebook kernels over IPC (:func:`kfcal_helpers.kernels.over_ipc`: no TCP port race)."""
     try:
         import nbval.kernel
     except ImportError:  # nbval not installed: no notebooks to run
@@ -57,7 +26,7 @@ _notebook_kernels_over_ipc()
 @pytest.fixture(scope="session")
 def kernel_manager_class():
     """The kernel manager class for tests that run cells through nbclient: its async one over IPC,
-    like nbval's kernels (:func:`over_ipc`)."""
+    like nbval's kernels (:func:`kfcal_helpers.kernels.over_ipc`)."""
     from jupyter_client import AsyncKernelManager
 
     return over_ipc(AsyncKernelManager)

@@ -10,8 +10,8 @@ import nbformat
 import pytest
 
 from kfcal_helpers import assignments
-from kfcal_helpers.assignments import (differing, nbgrader_notebook, parse_answer, render_lesson, render_solutions,
-                                       sync)
+from kfcal_helpers.assignments import (differing, nbgrader_notebook, parse_answer, read_source, render_lesson,
+                                       render_solutions, sync)
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = ROOT / "notebooks"
@@ -71,14 +71,22 @@ def tiny():
 # the committed notebooks and their sources
 # ------------------------------------------------------------------------------------------------
 def test_every_committed_lesson_and_solution_equals_what_its_source_renders():
-    names = sorted(p.name for p in (NOTEBOOKS / "source").glob("*.ipynb"))
-    assert names == sorted(p.name for p in NOTEBOOKS.glob("[0-9][0-9]*_*.ipynb"))   # one source per lesson
+    names = sorted(p.stem for p in (NOTEBOOKS / "source").glob("*.md"))
+    assert names == sorted(p.stem for p in NOTEBOOKS.glob("[0-9][0-9]*_*.ipynb"))   # one source per lesson
+    assert sorted(p.name for p in (NOTEBOOKS / "source").iterdir()) == [f"{n}.md" for n in names]  # and nothing else
     solved = [t.path.name for t in assignments.targets() if t.which == "solutions"]
     assert solved == sorted(p.name for p in (NOTEBOOKS / "solutions").glob("*.ipynb"))
     assert differing() == []
-    for path in (NOTEBOOKS / "source").glob("*.ipynb"):     # sources hold no outputs
+
+
+def test_no_notebook_of_the_repository_is_left_unexecuted():
+    """The house rule: every .ipynb is committed executed top to bottom (the sources are text)."""
+    for path in sorted(NOTEBOOKS.rglob("*.ipynb")):
+        if ".ipynb_checkpoints" in path.parts:
+            continue
         nb = nbformat.read(path, 4)
-        assert not any(c.get("outputs") or c.get("execution_count") for c in nb.cells if c.cell_type == "code")
+        counts = [c.execution_count for c in nb.cells if c.cell_type == "code"]
+        assert counts == list(range(1, len(counts) + 1)), path
 
 
 @pytest.fixture
@@ -87,9 +95,21 @@ def copy_01(tmp_path):
     name = "01_truth_model.ipynb"
     (tmp_path / "source").mkdir()
     (tmp_path / "solutions").mkdir()
-    for rel in (f"source/{name}", name, f"solutions/{name}"):
+    for rel in ("source/01_truth_model.md", name, f"solutions/{name}"):
         shutil.copy(NOTEBOOKS / rel, tmp_path / rel)
     return tmp_path, name
+
+
+def edit_source(folder, exercise, edit):
+    """Replace the text of exercise ``exercise``'s answer cell in ``folder/source/01_truth_model.md`` by
+    ``edit(text)``; returns the cell's index."""
+    path = folder / "source" / "01_truth_model.md"
+    nb = read_source(path)
+    index = next(i for i, c in enumerate(nb.cells) if c.metadata.get("kfcal", {}).get("exercise") == exercise)
+    text = path.read_text(encoding="utf-8")
+    assert text.count(nb.cells[index].source) == 1
+    path.write_text(text.replace(nb.cells[index].source, edit(nb.cells[index].source)), encoding="utf-8")
+    return index
 
 
 def test_a_lesson_edited_without_its_source_is_caught_and_rendered_back(copy_01):
@@ -97,6 +117,7 @@ def test_a_lesson_edited_without_its_source_is_caught_and_rendered_back(copy_01)
     assert differing(folder) == []
     lesson = nbformat.read(folder / name, 4)
     md = next(c for c in lesson.cells if c.cell_type == "markdown" and c.source.startswith("**Exercise 01.2"))
+    original = md.source
     md.source += " Edited in the lesson only."
     nbformat.write(lesson, folder / name)
     assert differing(folder) == [folder / name]
@@ -109,17 +130,16 @@ def test_a_lesson_edited_without_its_source_is_caught_and_rendered_back(copy_01)
     again = nbformat.read(folder / name, 4)
     before = nbformat.read(NOTEBOOKS / name, 4)
     assert [c.get("outputs") for c in again.cells] == [c.get("outputs") for c in before.cells]
-    assert [c.id for c in again.cells] == [c.id for c in before.cells]
+    # every other cell keeps its id; the edited one gets its source cell's (made from its text)
+    assert [c.id for c in again.cells if c.source != original] == [c.id for c in before.cells if c.source != original]
+    assert len({c.id for c in again.cells}) == len(again.cells)
     assert (folder / "solutions" / name).read_bytes() == solution_bytes   # unchanged: untouched
     assert sync(folder, log=lambda line: None) == []
 
 
 def test_an_edited_solution_in_the_source_is_written_as_needing_execution(copy_01):
     folder, name = copy_01
-    src = nbformat.read(folder / "source" / name, 4)
-    cell = next(c for c in src.cells if c.metadata.get("kfcal", {}).get("exercise") == "01.1")
-    cell.source = cell.source.replace("t_end = 10.0", "t_end = 10.0  # s")
-    nbformat.write(src, folder / "source" / name)
+    edit_source(folder, "01.1", lambda text: text.replace("t_end = 10.0", "t_end = 10.0  # s"))
     assert differing(folder) == [folder / "solutions" / name]    # the placeholder is unchanged
     lesson_bytes = (folder / name).read_bytes()
     assert sync(folder, log=lambda line: None) == [(folder / "solutions" / name, "needs execution")]
@@ -220,8 +240,8 @@ def test_every_lesson_converts_for_nbgrader_without_a_link_to_the_solutions():
     modules = assignments.check_modules()
     assert {"check_euler_truth", "check_measure_function"} <= set(modules)
     total, calls = 0, 0
-    for path in sorted((NOTEBOOKS / "source").glob("*.ipynb")):
-        src = nbformat.read(path, 4)
+    for path in assignments.sources():
+        src = read_source(path)
         nb = nbgrader_notebook(src, modules)
         text = "\n".join(c.source for c in nb.cells)
         assert "solutions/" not in text and "Worked solutions" not in text, path.name
@@ -230,7 +250,7 @@ def test_every_lesson_converts_for_nbgrader_without_a_link_to_the_solutions():
         assert len(graded) == len(assignments.answer_cells(src))
         assert len({c.metadata["nbgrader"]["grade_id"] for c in nb.cells if "nbgrader" in c.metadata}) == 2 * len(graded)
         total += len(graded)
-        lesson = nbformat.read(NOTEBOOKS / path.name, 4)
+        lesson = nbformat.read(NOTEBOOKS / f"{path.stem}.ipynb", 4)
         calls += sum(c.cell_type == "code" and c.source.rstrip().split("\n")[-1].startswith("check_")
                      for c in lesson.cells)
     assert total == calls and total >= 40   # one graded check per check call of the lessons
@@ -247,13 +267,11 @@ def test_cli_errors_are_one_line_exit_2(tmp_path, copy_01):
     line = one_error_line(cli("--course", tmp_path / "file"))
     assert "--course" in line
     folder, name = copy_01
-    src = nbformat.read(folder / "source" / name, 4)
-    index = next(i for i, c in enumerate(src.cells) if c.metadata.get("kfcal", {}).get("exercise") == "01.2")
-    src.cells[index].source = src.cells[index].source.replace("### END SOLUTION", "")
-    nbformat.write(src, folder / "source" / name)
+    index = edit_source(folder, "01.2", lambda text: text.replace("### END SOLUTION", ""))
+    line_number = read_source(folder / "source" / "01_truth_model.md", with_lines=True)[1][index]
     for args in (("--check",), ()):
         line = one_error_line(cli(*args, "--notebooks", folder))
-        assert f"source cell {index}" in line and "not closed" in line
+        assert f"01_truth_model.md, line {line_number}: source cell {index}" in line and "not closed" in line
 
 
 def test_course_without_nbgrader_names_the_instructors_file(tmp_path):
@@ -266,3 +284,144 @@ def test_course_without_nbgrader_names_the_instructors_file(tmp_path):
         assert not (tmp_path / "course").exists()
     else:
         pytest.skip("nbgrader is installed here: tests/test_nbgrader_roundtrip.py makes the course")
+
+
+# ------------------------------------------------------------------------------------------------
+# the sources' text format (MyST Markdown notebooks, read by myst-nb)
+# ------------------------------------------------------------------------------------------------
+TRICKY = '''---
+kernelspec:
+  display_name: Python 3 (ipykernel)
+  language: python
+  name: python3
+---
+
+# Tricky
+
+A fenced block in markdown, holding marker-like lines:
+
+```python
++++
+---
+x = 1
+```
+
+---
+
+A horizontal rule above.
+
++++ {"kfcal": {"role": "exercise"}}
+
+**Exercise 99.1** ends with a blank line.
+
+
+````{code-cell} ipython3
+---
+{"kfcal": {"role": "answer", "exercise": "03.2", "points": 1}}
+---
+### BEGIN PLACEHOLDER
+answer_03_2 = ...
+### END PLACEHOLDER
+### BEGIN SOLUTION
+answer_03_2 = """
+```
++++
+---
+"""
+### END SOLUTION
+check_x(answer_03_2)
+````
+
+```{code-cell} ipython3
+y = 2
+
+```
+
+```{code-cell} ipython3
+---
+{}
+---
+---
+```
+
+```{code-cell} ipython3
+y = 2
+
+```
+
++++
+
+last
+'''
+
+
+def test_a_text_source_reads_every_cell_exactly(tmp_path):
+    path = tmp_path / "99_tricky.md"
+    path.write_text(TRICKY, encoding="utf-8")
+    nb, lines = read_source(path, with_lines=True)
+    assert nb.metadata == {"kernelspec": {"display_name": "Python 3 (ipykernel)", "language": "python",
+                                          "name": "python3"}}
+    assert [(c.cell_type, c.source, c.metadata) for c in nb.cells] == [
+        ("markdown", "# Tricky\n\nA fenced block in markdown, holding marker-like lines:\n\n```python\n+++\n---\n"
+                     "x = 1\n```\n\n---\n\nA horizontal rule above.", {}),
+        ("markdown", "**Exercise 99.1** ends with a blank line.\n", {"kfcal": {"role": "exercise"}}),
+        ("code", '### BEGIN PLACEHOLDER\nanswer_03_2 = ...\n### END PLACEHOLDER\n### BEGIN SOLUTION\n'
+                 'answer_03_2 = """\n```\n+++\n---\n"""\n### END SOLUTION\ncheck_x(answer_03_2)',
+         {"kfcal": {"role": "answer", "exercise": "03.2", "points": 1}}),   # "03.2" a string, not 3.2
+        ("code", "y = 2\n", {}),
+        ("code", "---", {}),
+        ("code", "y = 2\n", {}),
+        ("markdown", "last", {})]
+    assert lines == [8, 24, 27, 44, 49, 56, 63]   # where each cell starts: its text, or its fence
+    # ids: made from the text, the same in every reading, unique (two equal cells), valid
+    assert [c.id for c in nb.cells] == [c.id for c in read_source(path).cells]
+    assert len({c.id for c in nb.cells}) == len(nb.cells)
+    nbformat.validate(nb)
+    assert render_solutions(nb).cells[1].source.startswith('answer_03_2 = """\n```')
+
+
+@pytest.mark.parametrize("bad, words", [
+    ("```{code-cell} ipython3\n---\n{\"kfcal\": {\"role\": \"answer\"\n---\nx = 1\n```\n", "Code cell 1"),
+    ("+++ {\"kfcal\": {\"role\": \"exercise\"}\n\ntext\n", "Markdown cell 1"),
+    ("```{code-cell} ipython3\n---\nkfcal: [unclosed\n---\nx = 1\n```\n", "Code cell 1"),
+])
+def test_a_malformed_source_raises_valueerror_naming_the_file_and_the_cell(tmp_path, bad, words):
+    path = tmp_path / "99_bad.md"
+    path.write_text("# Lesson\n\n" + bad, encoding="utf-8")
+    with pytest.raises(ValueError, match=f"^99_bad.md: {words} at line [0-9]+ could not be read"):
+        read_source(path)
+
+
+def test_cli_names_a_malformed_source_in_one_line_exit_2(copy_01):
+    folder, _ = copy_01
+    path = folder / "source" / "01_truth_model.md"
+    text = path.read_text(encoding="utf-8")
+    assert text.count('+++ {"kfcal": {"role": "exercise"}}') >= 1
+    path.write_text(text.replace('+++ {"kfcal": {"role": "exercise"}}', '+++ {"kfcal": {"role": "exercise"}', 1),
+                    encoding="utf-8")
+    for args in (("--check",), ()):
+        line = one_error_line(cli(*args, "--notebooks", folder))
+        assert "01_truth_model.md: Markdown cell" in line and "could not be read" in line
+
+
+def test_rendering_twice_gives_the_same_notebooks_and_course_ids(copy_01):
+    folder, name = copy_01
+    source = folder / "source" / "01_truth_model.md"
+    assert render_lesson(read_source(source)) == render_lesson(read_source(source))
+    a, b = (nbgrader_notebook(read_source(source)) for _ in range(2))
+    assert [c.id for c in a.cells] == [c.id for c in b.cells]
+    assert len({c.id for c in a.cells}) == len(a.cells)
+    nbformat.validate(a)
+    assert sync(folder, log=lambda line: None) == []          # nothing changed: nothing written
+
+
+def test_neither_pytest_nor_ruff_reads_the_sources():
+    """The sources are not notebooks to run (nbval) nor code to lint (pyproject.toml: norecursedirs, ruff's
+    extend-exclude)."""
+    collected = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-n", "0", "notebooks"],
+                               cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert collected.returncode == 0 and "notebooks/0" in collected.stdout, collected.stdout[-2000:]
+    assert "notebooks/source" not in collected.stdout
+    linted = subprocess.run([sys.executable, "-m", "ruff", "check", "--show-files", "."], cwd=ROOT,
+                            capture_output=True, text=True, timeout=300)
+    assert linted.returncode == 0 and "kfcal_helpers" in linted.stdout and "notebooks" not in linted.stdout

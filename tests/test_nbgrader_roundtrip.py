@@ -23,7 +23,7 @@ from nbgrader.api import Gradebook  # noqa: E402
 from nbgrader.apps import NbGraderAPI  # noqa: E402
 from traitlets.config import Config  # noqa: E402
 
-from kfcal_helpers.assignments import answer_cells, generate, write_course  # noqa: E402
+from kfcal_helpers.assignments import answer_cells, generate, read_source, write_course  # noqa: E402
 from kfcal_helpers.calibration.exercises import EXERCISES  # noqa: E402
 
 # nbgrader's own gradebook code warns about its SQLAlchemy sessions; not ours to fix
@@ -74,12 +74,12 @@ def submit(course, student, assignment, replace):
 @pytest.fixture(scope="module")
 def graded(tmp_path_factory):
     course = tmp_path_factory.mktemp("course")
-    names = write_course(course, [SOURCES / f"{n}.ipynb" for n in SOLVED])
+    names = write_course(course, [SOURCES / f"{n}.md" for n in SOLVED])
     assert names == SOLVED
     generate(course, names, log=lambda line: None)
     answers = {}
     for name in SOLVED:
-        for _, a in answer_cells(nbformat.read(SOURCES / f"{name}.ipynb", 4)):
+        for _, a in answer_cells(read_source(SOURCES / f"{name}.md")):
             answers["ex_" + a.exercise.replace(".", "_")] = (name, a)
     worked = {}
     for name in SOLVED:
@@ -171,5 +171,12 @@ def test_each_listed_wrong_answer_loses_exactly_its_item_and_shows_its_hint(grad
 def test_the_course_can_be_made_again_in_place(graded, tmp_path):
     course = tmp_path / "again"
     shutil.copytree(graded[0] / "source", course / "source")
-    names = write_course(course, [SOURCES / f"{SOLVED[0]}.ipynb"])
+    notebook = course / "source" / SOLVED[0] / f"{SOLVED[0]}.ipynb"
+    before = notebook.read_bytes()
+    names = write_course(course, [SOURCES / f"{SOLVED[0]}.md"])
     assert names == SOLVED[:1] and (course / "nbgrader_config.py").read_text().count("code_stub") == 1
+    # the same source makes the same notebook, cell ids included (a text source's ids come from its cells)
+    assert notebook.read_bytes() == before
+    nb = nbformat.read(notebook, 4)
+    nbformat.validate(nb)
+    assert len({c.id for c in nb.cells}) == len(nb.cells)

@@ -1,9 +1,45 @@
 """Graded assignments from one source per lesson.
 
 Each lesson ``notebooks/NN_name.ipynb`` and its worked solutions ``notebooks/solutions/NN_name.ipynb``
-are rendered from one source notebook, ``notebooks/source/NN_name.ipynb`` (kept without outputs),
-which holds the lesson, each exercise's placeholder and its worked answer, and its points.  A cell's
-``metadata["kfcal"]`` says where it goes:
+are rendered from one source notebook, ``notebooks/source/NN_name.md``, which holds the lesson, each
+exercise's placeholder and its worked answer, and its points.  A source is a MyST Markdown notebook
+(the text format of Jupyter Book and jupytext's ``md:myst``), read by myst-nb's reader
+(:func:`read_source`) and kept as text, without outputs, so that instructors can read and diff it and
+nobody opens an unexecuted notebook holding the solutions::
+
+    ---
+    kernelspec:
+      display_name: Python 3 (ipykernel)
+      language: python
+      name: python3
+    ---
+
+    # 01 — The truth model
+
+    ```{code-cell} ipython3
+    import numpy as np
+    ```
+
+    +++ {"kfcal": {"role": "exercise"}}
+
+    **Exercise 01.1 — ...** (the text, in the lesson and the solutions)
+
+    ```{code-cell} ipython3
+    ---
+    {"kfcal": {"role": "answer", "exercise": "01.1", "points": 1}}
+    ---
+    ### BEGIN PLACEHOLDER
+    answer_01_1 = ...   # replace ... with your answer
+    ### END PLACEHOLDER
+    ### BEGIN SOLUTION
+    answer_01_1 = 42
+    ### END SOLUTION
+    check_xxx(answer_01_1)
+    ```
+
+A code cell's metadata is the ``---`` block at the top of its fence, a markdown cell's the JSON after
+the ``+++`` line before it (written as JSON, which YAML reads exactly: ``"01.1"`` stays a string).  A
+cell's ``metadata["kfcal"]`` says where it goes:
 
 =========================================================  ==============================================
 ``kfcal`` metadata                                         the cell is
@@ -38,18 +74,20 @@ region; markers may be indented inside a function; the last line is the check ca
 ``python -m kfcal_helpers assignments`` writes the lessons and solutions that differ from what their
 source renders (``--execute`` runs those whose code changed), ``--check`` lists them (exit 1), and
 ``--course DIR`` makes an nbgrader course of every lesson with exercises (:mod:`._nbgrader`; needs
-``environment-instructors.txt``).  Only the standard library and nbformat are needed to render;
-nbclient to execute; nbgrader is imported only for ``--course``.
+``environment-instructors.txt``).  Only the standard library, nbformat and myst-nb (its
+reader of the sources) are needed to render; nbclient to execute; nbgrader is imported only for
+``--course``.
 """
 
 from ._cli import add_parser
 from ._nbgrader import COURSE_ID, INSTRUCTORS_FILE, check_modules, generate, nbgrader_notebook, write_course
-from ._source import (MARKERS, ROLES, AnswerCell, answer_cells, parse_answer, render, render_lesson, render_solutions,
-                      validate)
-from ._sync import (COURSE_LOG_LESSONS, NOTEBOOKS, Target, comparable, differing, equal, execute, merge, sync, targets,
-                    write_notebook)
+from ._source import (MARKERS, ROLES, SOURCE_SUFFIX, AnswerCell, answer_cells, parse_answer, read_source, render,
+                      render_lesson, render_solutions, validate)
+from ._sync import (COURSE_LOG_LESSONS, NOTEBOOKS, Target, comparable, differing, equal, execute, merge, render_source,
+                    sources, sync, targets, write_notebook)
 
-__all__ = ["ROLES", "MARKERS", "AnswerCell", "parse_answer", "validate", "answer_cells", "render", "render_lesson",
-           "render_solutions", "NOTEBOOKS", "COURSE_LOG_LESSONS", "Target", "targets", "comparable", "equal",
+__all__ = ["ROLES", "MARKERS", "SOURCE_SUFFIX", "AnswerCell", "read_source", "parse_answer", "validate",
+           "answer_cells", "render", "render_lesson", "render_solutions", "NOTEBOOKS", "COURSE_LOG_LESSONS", "Target",
+           "sources", "targets", "render_source", "comparable", "equal",
            "differing", "merge", "sync", "execute", "COURSE_ID", "INSTRUCTORS_FILE", "check_modules",
            "nbgrader_notebook", "write_course", "generate", "add_parser", "write_notebook"]

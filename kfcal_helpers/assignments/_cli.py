@@ -14,7 +14,8 @@ def add_parser(subparsers):
     """Register ``assignments`` on an argparse sub-parsers object."""
     p = subparsers.add_parser(
         "assignments", help="render the lessons and solutions from notebooks/source; make an nbgrader course",
-        description="Render every lesson and worked-solutions notebook from its source in notebooks/source/ and "
+        description="Render every lesson and worked-solutions notebook from its source in notebooks/source/ "
+                    "(NN_name.md, a MyST Markdown notebook) and "
                     "write those that changed (the others are left untouched), or check that none differs "
                     "(--check), or make an nbgrader course of the exercises (--course DIR).")
     mode = p.add_mutually_exclusive_group()
@@ -55,7 +56,7 @@ def _course_dir(value: str) -> Path:
 def run(args) -> int:
     """Run the sub-command; returns the exit code (``ValueError`` for bad input: exit 2)."""
     from ._nbgrader import generate, nbgrader_missing, write_course
-    from ._sync import differing, sync, targets
+    from ._sync import differing, sources, sync, targets
 
     notebooks = _notebooks(args.notebooks)
     if args.course is not None:
@@ -65,7 +66,7 @@ def run(args) -> int:
         if missing:
             raise ValueError(f"--course: {missing}")
         course = _course_dir(args.course)
-        names = write_course(course, sorted((notebooks / "source").glob("*.ipynb")))
+        names = write_course(course, sources(notebooks))
         generate(course, names, log=lambda line: print(line, flush=True))
         print(f"course {path_text(course)}: {len(names)} assignments released; graders run nbgrader there "
               f"(collect, autograde, generate_feedback)")

@@ -27,8 +27,8 @@ import re
 import shutil
 from pathlib import Path
 
-from ._source import BEGIN_SOLUTION, END_SOLUTION, parse_answer, validate
-from ._sync import write_notebook
+from ._source import BEGIN_SOLUTION, END_SOLUTION, parse_answer, read_source, validate
+from ._sync import located, write_notebook
 
 __all__ = ["COURSE_ID", "INSTRUCTORS_FILE", "SOLUTIONS_LINK", "check_modules", "nbgrader_notebook", "write_course",
            "generate", "nbgrader_missing"]
@@ -156,22 +156,23 @@ def nbgrader_missing() -> str | None:
 
 def write_course(course: Path, sources: list[Path]) -> list[str]:
     """Write ``course/nbgrader_config.py`` and ``course/source/<stem>/<stem>.ipynb`` for every source
-    with an answer cell; returns the assignment names.  A source notebook already in the course is
-    replaced; nothing else there is touched."""
-    import nbformat
-
+    (``notebooks/source/NN_name.md``) with an answer cell; returns the assignment names.  A source
+    notebook already in the course is replaced; nothing else there is touched.  The cells keep the ids
+    :func:`._source.read_source` gives them (made from their text), so the same sources make the same
+    course."""
     course = Path(course)
     modules = check_modules()
     names = []
     made = []
     for path in sources:
-        nb = nbformat.read(str(path), as_version=4)
-        if not any(c.get("metadata", {}).get("kfcal", {}).get("role") == "answer" for c in nb.cells):
+        nb, lines = read_source(path, with_lines=True)
+        if not any(isinstance(c.get("metadata", {}).get("kfcal"), dict) and c.metadata["kfcal"].get("role") == "answer"
+                   for c in nb.cells):
             continue
         try:
             made.append((path.stem, nbgrader_notebook(nb, modules)))
         except ValueError as exc:
-            raise ValueError(f"{path.name}: {exc}") from None
+            raise ValueError(located(path, lines, exc)) from None
     course.mkdir(parents=True, exist_ok=True)
     config = course / "nbgrader_config.py"
     partial = course / ".nbgrader_config.py.tmp"

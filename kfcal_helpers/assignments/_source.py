@@ -1,7 +1,12 @@
 """Reading a source notebook and rendering its lesson and its worked solutions.
 
-A source notebook, ``notebooks/source/NN_name.ipynb``, is a lesson with its exercises' placeholders
-and their worked solutions side by side.  Each cell says where it goes by ``metadata["kfcal"]``:
+A source notebook, ``notebooks/source/NN_name.md``, is a lesson with its exercises' placeholders
+and their worked solutions side by side, kept as a MyST Markdown notebook (the text format of Jupyter
+Book and jupytext's ``md:myst``; read by :func:`read_source`): the notebook metadata as YAML front
+matter, each code cell as a ```` ```{code-cell} ipython3 ```` fence (its metadata, as JSON, in a
+``---`` block at the top of the fence), and a ``+++`` line before a markdown cell that follows another
+markdown cell or has metadata (``+++ {"kfcal": {"role": "exercise"}}``).  Each cell says where it goes
+by ``metadata["kfcal"]``:
 
 * no ``kfcal`` entry: a lesson cell, in the lesson only;
 * ``{"role": "exercise"}``: a cell of both notebooks (the exercise's text, or any cell the two share);
@@ -16,16 +21,23 @@ and their worked solutions side by side.  Each cell says where it goes by ``meta
   line, outside every region, is the check call ``check_xxx(answer_NN_k)`` (or ``check_xxx(f)``, the
   student's function ``f`` itself).
 
-Everything else of a cell (type, source, other metadata, id) is copied; the source holds no outputs.
+Everything else of a cell (type, source, other metadata, id) is copied; the source holds no outputs
+(a text source has none).  A cell's text is what stands between its marker and the next one, without the
+blank lines around it; a blank line more at its end is kept as part of the cell.
 """
 
 from __future__ import annotations
 
 import copy
+import hashlib
 import re
+from pathlib import Path
 
 __all__ = ["ROLES", "MARKERS", "AnswerCell", "parse_answer", "render", "render_lesson", "render_solutions",
-           "answer_cells", "validate"]
+           "answer_cells", "validate", "read_source", "SOURCE_SUFFIX"]
+
+#: the file suffix of a source notebook (``notebooks/source/NN_name.md``)
+SOURCE_SUFFIX = ".md"
 
 #: the roles a source cell may have (None: a lesson cell)
 ROLES = (None, "exercise", "solution", "answer")
@@ -189,3 +201,80 @@ def render_lesson(nb):
 def render_solutions(nb):
     """The worked-solutions notebook of the source ``nb``: exercise and solution cells, answers solved."""
     return render(nb, "solutions")
+
+
+def _fence_end(lines: list[str], start: int) -> int:
+    """The index of the line closing the code fence whose body starts at ``lines[start]`` (CommonMark: the
+    fence's character, at least as many, nothing else on the line), or ``len(lines)``."""
+    opening = re.match(r" {0,3}(`{3,}|~{3,})", lines[start - 1])
+    if opening is None:
+        return len(lines)
+    close = re.compile(rf" {{0,3}}{re.escape(opening.group(1)[0])}{{{len(opening.group(1))},}}[ \t]*")
+    return next((j for j in range(start, len(lines)) if close.fullmatch(lines[j])), len(lines))
+
+
+def _restore_blank_lines(nb, starts: list[int], lines: list[str]) -> None:
+    """Give back the blank lines at the end of a cell that myst-nb's reader drops (all of a markdown
+    cell's; one of a code cell's when it has a metadata block): the file's blank lines before the next
+    cell's marker (less the one that separates the cells) are part of the cell."""
+    for i, cell in enumerate(nb.cells):
+        start = starts[i]
+        if cell.cell_type == "code":
+            raw = "\n".join(lines[start:_fence_end(lines, start)])
+            body = raw.rstrip("\n")
+            if body.endswith(cell.source.rstrip("\n")):
+                cell.source = cell.source.rstrip("\n") + raw[len(body):]
+        else:
+            end = starts[i + 1] - 1 if i + 1 < len(starts) else len(lines)
+            raw = "\n".join(lines[start:end]).lstrip("\n")
+            if i + 1 < len(starts) and raw.endswith("\n"):
+                raw = raw[:-1]   # the blank line before the next cell's marker
+            if raw.rstrip() == cell.source:
+                cell.source = raw
+
+
+def _cell_ids(nb) -> None:
+    """Give each cell an id made from its type and text (a text source has none): the same cell gets the
+    same id in every reading, and an edit changes only its own cell's id."""
+    seen = set()
+    for cell in nb.cells:
+        base = hashlib.sha1(f"{cell.cell_type}\n{cell.source}".encode()).hexdigest()[:8]
+        cell_id, k = base, 1
+        while cell_id in seen:
+            k += 1
+            cell_id = f"{base}-{k}"
+        seen.add(cell_id)
+        cell["id"] = cell_id
+
+
+def read_source(path, *, with_lines: bool = False):
+    """The source notebook at ``path`` (``NN_name.md``, a MyST Markdown notebook), read by myst-nb's
+    reader, as an nbformat notebook (version 4.5) whose cells have ids made from their text.  With
+    ``with_lines``, ``(notebook, lines)``: the line of the file (from 1) where each cell's marker is.
+    ``ValueError`` naming the file (and the cell and line) when it cannot be read."""
+    path = Path(path)
+    try:
+        from myst_nb.core.read import read_myst_markdown_notebook
+    except ImportError:
+        raise ValueError(f"{path.name}: reading a source notebook needs myst-nb: "
+                         f"pip install -r environment.txt") from None
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path.name}: cannot be read ({exc})") from None
+    try:
+        nb = read_myst_markdown_notebook(text, add_source_map=True, path=path)
+    except Exception as exc:   # MystMetadataParsingError, a YAML error of the front matter, a bad :load:
+        raise ValueError(f"{path.name}: {' '.join(str(exc).split())}") from None
+    starts = nb.metadata.pop("source_map")
+    if not isinstance(nb.metadata, dict) or any(not isinstance(c.metadata, dict) for c in nb.cells):
+        raise ValueError(f"{path.name}: metadata must be mappings")
+    _restore_blank_lines(nb, starts, text.splitlines())
+    nb.nbformat, nb.nbformat_minor = 4, 5
+    _cell_ids(nb)
+    if with_lines:
+        lines = text.splitlines()
+        return nb, [start if c.cell_type == "code"   # the fence's line
+                    else next((j for j in range(start, len(lines)) if lines[j].strip()), start) + 1   # its first line
+                    for start, c in zip(starts, nb.cells)]
+    return nb

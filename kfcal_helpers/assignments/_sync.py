@@ -1,5 +1,8 @@
 """Keeping ``notebooks/`` and ``notebooks/solutions/`` equal to what ``notebooks/source/`` renders.
 
+The sources are ``notebooks/source/NN_name.md`` (MyST Markdown notebooks, :func:`._source.read_source`);
+each renders ``notebooks/NN_name.ipynb`` and, when it has an answer cell, ``notebooks/solutions/NN_name.ipynb``.
+
 Two notebooks are *equal* when they have the same notebook metadata (``widgets``, the widget state
 saved by an execution, left out) and the same cells: cell type, source and metadata (``execution``
 left out).  Outputs, execution counts and cell ids are not compared.
@@ -14,9 +17,9 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from ._source import render
+from ._source import SOURCE_SUFFIX, read_source, render
 
-__all__ = ["NOTEBOOKS", "COURSE_LOG_LESSONS", "Target", "targets", "comparable", "equal", "differing", "merge",
+__all__ = ["NOTEBOOKS", "COURSE_LOG_LESSONS", "Target", "sources", "targets", "render_source", "located", "comparable", "equal", "differing", "merge",
            "sync", "execute", "write_notebook"]
 
 #: the repository's notebooks folder (lessons; ``solutions/`` and ``source/`` below it)
@@ -35,22 +38,51 @@ class Target:
 
 
 def _read(path: Path):
+    """A rendered notebook (``.ipynb``) or a source (``.md``, :func:`._source.read_source`)."""
+    if path.suffix == SOURCE_SUFFIX:
+        return read_source(path)
     import nbformat
 
     return nbformat.read(str(path), as_version=4)
 
 
+def sources(notebooks: Path = NOTEBOOKS) -> list[Path]:
+    """The source notebooks, ``notebooks/source/*.md``, in order."""
+    return sorted(Path(notebooks, "source").glob(f"*{SOURCE_SUFFIX}"))
+
+
 def targets(notebooks: Path = NOTEBOOKS) -> list[Target]:
-    """Every notebook rendered from ``notebooks/source/*.ipynb``: each source's lesson, and its
+    """Every notebook rendered from ``notebooks/source/*.md``: each source's lesson, and its
     solutions when it has an answer cell."""
     notebooks = Path(notebooks)
     out = []
-    for source in sorted((notebooks / "source").glob("*.ipynb")):
-        out.append(Target(source, "lesson", notebooks / source.name))
+    for source in sources(notebooks):
+        name = source.stem + ".ipynb"
+        out.append(Target(source, "lesson", notebooks / name))
         nb = _read(source)
-        if any(c.get("metadata", {}).get("kfcal", {}).get("role") == "answer" for c in nb.cells):
-            out.append(Target(source, "solutions", notebooks / "solutions" / source.name))
+        if any(isinstance(c.get("metadata", {}).get("kfcal"), dict) and c.metadata["kfcal"].get("role") == "answer"
+               for c in nb.cells):
+            out.append(Target(source, "solutions", notebooks / "solutions" / name))
     return out
+
+
+def render_source(path: Path, which: str):
+    """The ``which`` ("lesson" or "solutions") notebook of the source at ``path``; a ``ValueError`` of a bad
+    cell names the file and the cell's line."""
+    nb, lines = read_source(path, with_lines=True)
+    try:
+        return render(nb, which)
+    except ValueError as exc:
+        raise ValueError(located(path, lines, exc)) from None
+
+
+def located(path: Path, lines: list[int], exc: ValueError) -> str:
+    """The message of ``exc`` (naming "source cell N") prefixed with the file's name and that cell's line."""
+    import re
+
+    match = re.match(r"source cell (\d+)", str(exc))
+    where = f", line {lines[int(match.group(1))]}" if match and int(match.group(1)) < len(lines) else ""
+    return f"{Path(path).name}{where}: {exc}"
 
 
 def comparable(nb):
@@ -71,7 +103,7 @@ def differing(notebooks: Path = NOTEBOOKS) -> list[Path]:
     """The rendered notebooks that are missing or differ from what their source renders."""
     out = []
     for target in targets(notebooks):
-        wanted = render(_read(target.source), target.which)
+        wanted = render_source(target.source, target.which)
         if not target.path.exists() or not equal(wanted, _read(target.path)):
             out.append(target.path)
     return out
@@ -84,29 +116,44 @@ def merge(rendered, old):
     out = copy.deepcopy(rendered)
     pool = list(old["cells"]) if old is not None else []
     new_code = 0
+    fresh = []   # the cells that keep the id of their source cell
     for cell in out["cells"]:
         match = next((i for i, c in enumerate(pool) if c["cell_type"] == cell["cell_type"]
                       and c["source"] == cell["source"]), None)
         if match is None:
             new_code += cell["cell_type"] == "code"
+            fresh.append(cell)
             continue
         prev = pool.pop(match)
         if "id" in prev:
             cell["id"] = prev["id"]
+        else:
+            fresh.append(cell)
         if cell["cell_type"] == "code":
             cell["outputs"], cell["execution_count"] = prev.get("outputs", []), prev.get("execution_count")
             if "execution" in prev.get("metadata", {}):
                 cell["metadata"]["execution"] = prev["metadata"]["execution"]
     if old is not None and "widgets" in old["metadata"] and new_code == 0:
         out["metadata"]["widgets"] = old["metadata"]["widgets"]
+    kept = {c.get("id") for c in out["cells"] if all(c is not f for f in fresh)}
+    for cell in fresh:   # a new cell's id, made from its text, must not be one an old cell keeps
+        if cell.get("id") in kept:
+            base, k = cell["id"][:60], 2
+            while f"{base}-{k}" in kept:
+                k += 1
+            cell["id"] = f"{base}-{k}"
+        kept.add(cell.get("id"))
     return out, new_code
 
 
 def execute(nb, path: Path, timeout: int = 1200):
     """Run ``nb`` (which lives at ``path``) top to bottom in a fresh kernel, in ``path``'s folder, with
-    ``KFCAL_QUIET=1``; the course log (``KFCAL_COURSE_LOG``) only for :data:`COURSE_LOG_LESSONS`."""
+    ``KFCAL_QUIET=1``; the course log (``KFCAL_COURSE_LOG``) only for :data:`COURSE_LOG_LESSONS`.  The
+    kernel listens on Unix sockets (:func:`kfcal_helpers.kernels.over_ipc`; TCP on Windows)."""
     from jupyter_client import AsyncKernelManager
     from nbclient import NotebookClient
+
+    from ..kernels import over_ipc
 
     saved = dict(os.environ)
     os.environ["KFCAL_QUIET"] = "1"
@@ -114,9 +161,8 @@ def execute(nb, path: Path, timeout: int = 1200):
         os.environ.pop("KFCAL_COURSE_LOG", None)
     sockets = tempfile.mkdtemp(prefix="kfcal-kernel-")
     try:
-        # the kernel on Unix sockets of its own (no TCP port to race for, no unencrypted-TCP warning)
-        km = (AsyncKernelManager(kernel_name="python3", transport="ipc", ip=os.path.join(sockets, "k"))
-              if os.name != "nt" else None)
+        # the kernel on Unix sockets of its own (kfcal_helpers.kernels: no TCP port to race for); TCP on Windows
+        km = over_ipc(AsyncKernelManager, folder=sockets)(kernel_name="python3")
         NotebookClient(nb, km=km, timeout=timeout, kernel_name="python3",
                        resources={"metadata": {"path": str(path.parent)}}).execute()
     finally:
@@ -149,7 +195,7 @@ def sync(notebooks: Path = NOTEBOOKS, *, run: bool = False, log=print) -> list[t
     ``"executed"``, ``"needs execution"`` or ``"written"`` (markdown changes only)."""
     written = []
     for target in targets(notebooks):
-        wanted = render(_read(target.source), target.which)
+        wanted = render_source(target.source, target.which)
         old = _read(target.path) if target.path.exists() else None
         if old is not None and equal(wanted, old):
             continue
