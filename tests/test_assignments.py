@@ -1,15 +1,19 @@
 """notebooks/source renders exactly the committed lessons and solutions; the renderer's roles and
 regions, its errors, the nbgrader conversion, and the ``assignments`` command's errors."""
 
+import contextlib
+import io
 import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import nbformat
 import pytest
 
 from kfcal_helpers import assignments
+from kfcal_helpers.cli import main
 from kfcal_helpers.assignments import (differing, nbgrader_notebook, parse_answer, read_source, render_lesson,
                                        render_solutions, sync)
 
@@ -17,9 +21,20 @@ ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = ROOT / "notebooks"
 
 
-def cli(*args, cwd=ROOT):
-    return subprocess.run([sys.executable, "-m", "kfcal_helpers", "assignments", *map(str, args)], cwd=cwd,
-                          capture_output=True, text=True, timeout=300)
+def cli(*args):
+    """``python -m kfcal_helpers assignments ARGS`` through ``kfcal_helpers.cli.main`` in this process
+    (what the entry point runs; :func:`test_cli_error_in_a_real_process` runs the entry point itself):
+    ``(returncode, stdout, stderr)``."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(["assignments", *map(str, args)])
+    return Run(code, out.getvalue(), err.getvalue())
+
+
+class Run(NamedTuple):
+    returncode: int
+    stdout: str
+    stderr: str
 
 
 def one_error_line(proc):
@@ -274,6 +289,13 @@ def test_cli_errors_are_one_line_exit_2(tmp_path, copy_01):
         assert f"01_truth_model.md, line {line_number}: source cell {index}" in line and "not closed" in line
 
 
+def test_cli_error_in_a_real_process(tmp_path):
+    """One error row through the real entry point, ``python -m kfcal_helpers``."""
+    proc = subprocess.run([sys.executable, "-m", "kfcal_helpers", "assignments", "--notebooks",
+                           str(tmp_path / "nothing")], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert "--notebooks" in one_error_line(proc)
+
+
 def test_course_without_nbgrader_names_the_instructors_file(tmp_path):
     pytest.importorskip("nbformat")
     try:
@@ -312,7 +334,7 @@ A horizontal rule above.
 
 +++ {"kfcal": {"role": "exercise"}}
 
-**Exercise 99.1** ends with a blank line.
+**Exercise 99.1** is followed by two blank lines, not part of it.
 
 
 ````{code-cell} ipython3
@@ -364,7 +386,7 @@ def test_a_text_source_reads_every_cell_exactly(tmp_path):
     assert [(c.cell_type, c.source, c.metadata) for c in nb.cells] == [
         ("markdown", "# Tricky\n\nA fenced block in markdown, holding marker-like lines:\n\n```python\n+++\n---\n"
                      "x = 1\n```\n\n---\n\nA horizontal rule above.", {}),
-        ("markdown", "**Exercise 99.1** ends with a blank line.\n", {"kfcal": {"role": "exercise"}}),
+        ("markdown", "**Exercise 99.1** is followed by two blank lines, not part of it.", {"kfcal": {"role": "exercise"}}),
         ("code", '### BEGIN PLACEHOLDER\nanswer_03_2 = ...\n### END PLACEHOLDER\n### BEGIN SOLUTION\n'
                  'answer_03_2 = """\n```\n+++\n---\n"""\n### END SOLUTION\ncheck_x(answer_03_2)',
          {"kfcal": {"role": "answer", "exercise": "03.2", "points": 1}}),   # "03.2" a string, not 3.2
@@ -413,15 +435,3 @@ def test_rendering_twice_gives_the_same_notebooks_and_course_ids(copy_01):
     assert len({c.id for c in a.cells}) == len(a.cells)
     nbformat.validate(a)
     assert sync(folder, log=lambda line: None) == []          # nothing changed: nothing written
-
-
-def test_neither_pytest_nor_ruff_reads_the_sources():
-    """The sources are not notebooks to run (nbval) nor code to lint (pyproject.toml: norecursedirs, ruff's
-    extend-exclude)."""
-    collected = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-n", "0", "notebooks"],
-                               cwd=ROOT, capture_output=True, text=True, timeout=300)
-    assert collected.returncode == 0 and "notebooks/0" in collected.stdout, collected.stdout[-2000:]
-    assert "notebooks/source" not in collected.stdout
-    linted = subprocess.run([sys.executable, "-m", "ruff", "check", "--show-files", "."], cwd=ROOT,
-                            capture_output=True, text=True, timeout=300)
-    assert linted.returncode == 0 and "kfcal_helpers" in linted.stdout and "notebooks" not in linted.stdout

@@ -23,7 +23,7 @@ by ``metadata["kfcal"]``:
 
 Everything else of a cell (type, source, other metadata, id) is copied; the source holds no outputs
 (a text source has none).  A cell's text is what stands between its marker and the next one, without the
-blank lines around it; a blank line more at its end is kept as part of the cell.
+blank lines around it (myst-nb's reading, used as it is).
 """
 
 from __future__ import annotations
@@ -203,36 +203,6 @@ def render_solutions(nb):
     return render(nb, "solutions")
 
 
-def _fence_end(lines: list[str], start: int) -> int:
-    """The index of the line closing the code fence whose body starts at ``lines[start]`` (CommonMark: the
-    fence's character, at least as many, nothing else on the line), or ``len(lines)``."""
-    opening = re.match(r" {0,3}(`{3,}|~{3,})", lines[start - 1])
-    if opening is None:
-        return len(lines)
-    close = re.compile(rf" {{0,3}}{re.escape(opening.group(1)[0])}{{{len(opening.group(1))},}}[ \t]*")
-    return next((j for j in range(start, len(lines)) if close.fullmatch(lines[j])), len(lines))
-
-
-def _restore_blank_lines(nb, starts: list[int], lines: list[str]) -> None:
-    """Give back the blank lines at the end of a cell that myst-nb's reader drops (all of a markdown
-    cell's; one of a code cell's when it has a metadata block): the file's blank lines before the next
-    cell's marker (less the one that separates the cells) are part of the cell."""
-    for i, cell in enumerate(nb.cells):
-        start = starts[i]
-        if cell.cell_type == "code":
-            raw = "\n".join(lines[start:_fence_end(lines, start)])
-            body = raw.rstrip("\n")
-            if body.endswith(cell.source.rstrip("\n")):
-                cell.source = cell.source.rstrip("\n") + raw[len(body):]
-        else:
-            end = starts[i + 1] - 1 if i + 1 < len(starts) else len(lines)
-            raw = "\n".join(lines[start:end]).lstrip("\n")
-            if i + 1 < len(starts) and raw.endswith("\n"):
-                raw = raw[:-1]   # the blank line before the next cell's marker
-            if raw.rstrip() == cell.source:
-                cell.source = raw
-
-
 def _cell_ids(nb) -> None:
     """Give each cell an id made from its type and text (a text source has none): the same cell gets the
     same id in every reading, and an edit changes only its own cell's id."""
@@ -269,7 +239,6 @@ def read_source(path, *, with_lines: bool = False):
     starts = nb.metadata.pop("source_map")
     if not isinstance(nb.metadata, dict) or any(not isinstance(c.metadata, dict) for c in nb.cells):
         raise ValueError(f"{path.name}: metadata must be mappings")
-    _restore_blank_lines(nb, starts, text.splitlines())
     nb.nbformat, nb.nbformat_minor = 4, 5
     _cell_ids(nb)
     if with_lines:
