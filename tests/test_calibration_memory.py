@@ -15,7 +15,9 @@ import sys
 import pytest
 
 from kfcal_helpers.calibration import CalibrationParams
+from kfcal_helpers.calibration import cli as calibration_cli
 from kfcal_helpers.calibration.cli import output_bytes, plan_between_fixes
+from kfcal_helpers.cli import main
 from kfcal_helpers.calibration.montecarlo import MEMORY_LIMIT, estimate_run
 
 pytestmark = pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="needs /proc (Linux) for VmHWM")
@@ -53,6 +55,13 @@ def _largest(imu_rate, gps_rate, runs, engine="batch", figures=False, between=No
     return (params, *_plan(params, runs, engine, figures))
 
 
+def _argv(params, runs, engine, output, figures_dir=None):
+    """``calibrate``'s arguments for ``params`` (figures into ``figures_dir`` when given)."""
+    argv = ["calibrate", "--imu-rate", f"{params.imu_rate:g}", "--gps-rate", f"{params.gps_rate:g}",
+            "--duration", repr(params.duration), "--runs", str(runs), "--engine", engine, *output]
+    return argv + (["--figures", str(figures_dir)] if figures_dir is not None else [])
+
+
 CASES = {  # (imu Hz, gps Hz, runs, engine, figures, between wanted, output)
     "fixes-table": (200.0, 40.0, 5, "batch", False, None, []),
     "fixes-json": (200.0, 40.0, 5, "batch", False, None, ["--json"]),
@@ -74,10 +83,7 @@ def test_estimate_bounds_the_peak_of_a_child_at_the_largest_accepted_run(case, t
         between, estimate = _plan(params, runs, engine, figures)
     else:
         params, between, estimate = _largest(imu, gps, runs, engine, figures, between)
-    argv = ["calibrate", "--imu-rate", f"{params.imu_rate:g}", "--gps-rate", f"{params.gps_rate:g}",
-            "--duration", repr(params.duration), "--runs", str(runs), "--engine", engine, *output]
-    if figures:
-        argv += ["--figures", str(tmp_path)]
+    argv = _argv(params, runs, engine, output, tmp_path if figures else None)
     env = {"KFCAL_QUIET": "1", "PATH": os.environ.get("PATH", ""), "MPLBACKEND": "Agg",
            "MPLCONFIGDIR": str(tmp_path / "mpl"), "HOME": str(tmp_path)}
     if "PYTHONPATH" in os.environ:
@@ -91,3 +97,35 @@ def test_estimate_bounds_the_peak_of_a_child_at_the_largest_accepted_run(case, t
         shown = any(line.split()[:1] == ["between_fixes"] for line in r.stdout.splitlines())
     assert shown == between
     assert peak <= estimate <= MEMORY_LIMIT, (case, argv, peak / 1e6, estimate / 1e6)
+
+
+@pytest.mark.parametrize("case", [c for c in CASES if CASES[c][3] == "batch"])
+def test_one_period_more_than_the_largest_accepted_run_is_refused_before_the_work(case, tmp_path, monkeypatch,
+                                                                                   capsys):
+    """One GPS period longer than the largest run the estimate accepts (with or without the 200 Hz check
+    between fixes): exit 2 with the estimate, in one line, and no realization drawn (the estimate refuses
+    it before the Monte Carlo starts)."""
+    imu, gps, runs, engine, figures, _, output = CASES[case]
+    params, _, _ = _largest(imu, gps, runs, engine, figures)
+    longer = CalibrationParams(imu_rate=imu, gps_rate=gps, duration=params.duration + 1 / gps)
+    refused = []
+    real = calibration_cli.estimate_run
+
+    def estimate_run(*a, **k):
+        try:
+            return real(*a, **k)
+        except ValueError:
+            refused.append(k.get("between_fixes"))
+            raise
+
+    def no_monte_carlo(*a, **k):
+        raise AssertionError("the Monte Carlo started: the estimate did not refuse the run")
+
+    monkeypatch.setattr(calibration_cli, "estimate_run", estimate_run)
+    monkeypatch.setattr(calibration_cli, "run_monte_carlo", no_monte_carlo)
+    assert main(_argv(longer, runs, engine, output, tmp_path if figures else None)) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "calibrate: error:" in err[0] and "MB" in err[0], err
+    assert refused and not refused[-1]   # refused with the 200 Hz sums (when asked), then without them too
+    if figures:
+        assert list(tmp_path.iterdir()) == []

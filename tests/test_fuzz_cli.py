@@ -822,27 +822,6 @@ runpy.run_module("kfcal_helpers", run_name="__main__", alter_sys=True)
 """
 
 
-def _refusals(mp) -> list:
-    """Make the calibrate Monte Carlo fail if it starts, and record each refusal of its estimate
-    (``calibration_cli.estimate_run`` raising ValueError) in the list returned."""
-    refused = []
-    real = calibration_cli.estimate_run
-
-    def estimate_run(*a, **k):
-        try:
-            return real(*a, **k)
-        except ValueError:
-            refused.append("estimate_run")
-            raise
-
-    def no_monte_carlo(*a, **k):
-        raise AssertionError("the Monte Carlo started: the estimate did not refuse the run")
-
-    mp.setattr(calibration_cli, "estimate_run", estimate_run)
-    mp.setattr(calibration_cli, "run_monte_carlo", no_monte_carlo)
-    return refused
-
-
 def test_unreadable_and_unwritable_files_real_process():
     """Real permissions (as user nobody when running as root): an unreadable ydata.csv, and output
     folders that cannot be written, refused in one line before any long work."""
@@ -879,53 +858,6 @@ def test_unreadable_and_unwritable_files_real_process():
         assert list(ro.iterdir()) == []
     finally:
         shutil.rmtree(root, ignore_errors=True)
-
-
-PEAK_CASES = [  # near the largest accepted sizes: many GPS fixes; many IMU samples; figures on top
-    ["--gps-rate", "40", "--duration", "26", "--runs", "5"],
-    ["--imu-rate", "20000", "--duration", "155", "--gps-rate", "1", "--runs", "3"],
-    ["--gps-rate", "40", "--duration", "21.25", "--runs", "5", "--figures", "{tmp}"],
-]
-
-
-@pytest.mark.parametrize("args", PEAK_CASES, ids=["fixes", "samples", "figures"])
-def test_peak_memory_of_the_largest_accepted_runs(args, tmp_path):
-    """The largest runs the estimate accepts stay under MEMORY_LIMIT (resident peak of the process),
-    and a slightly larger one is refused with its estimate."""
-    args = [a.replace("{tmp}", str(tmp_path)) for a in args]
-    # the child's own high-water mark (VmHWM, kB): ru_maxrss of a forked child would include this
-    # (large) test process's resident size at the moment it was spawned
-    code = ("import sys; from kfcal_helpers.cli import main; rc = main(sys.argv[1:]); "
-            "print([int(line.split()[1]) for line in open('/proc/self/status') if line.startswith('VmHWM')][0], "
-            "file=sys.stderr); sys.exit(rc)")
-    r = subprocess.run([sys.executable, "-c", code, "calibrate", *args], capture_output=True, text=True, env=ENV,
-                       timeout=300)
-    assert r.returncode == 0, r.stderr
-    peak = int(r.stderr.strip().splitlines()[-1]) * 1024  # VmHWM is in kB
-    assert peak <= MEMORY_LIMIT, f"peak {peak / 1e6:.0f} MB"
-    # and the estimate the command line refused on bounds it (the table and the JSON show the 200 Hz
-    # check between fixes when it fits: its sums are counted then)
-    from kfcal_helpers.calibration.cli import output_bytes, plan_between_fixes
-    from kfcal_helpers.calibration.montecarlo import estimate_run
-
-    value = {args[k]: args[k + 1] for k in range(0, len(args) - 1, 2) if args[k].startswith("--")}
-    params = CalibrationParams(imu_rate=float(value.get("--imu-rate", 200)), gps_rate=float(value.get("--gps-rate", 5)),
-                               duration=float(value["--duration"]))
-    figures = "--figures" in args
-    between, _ = plan_between_fixes(params, int(value["--runs"]), "batch", figures)
-    estimate = estimate_run(params, int(value["--runs"]), between_fixes=between,
-                            extra_bytes=output_bytes(params, figures, between))[0]
-    assert peak <= estimate, f"peak {peak / 1e6:.0f} MB, estimate {estimate / 1e6:.0f} MB"
-    # one step larger is refused, before the work
-    i = args.index("--duration")
-    bigger = list(args)
-    bigger[i + 1] = str(float(args[i + 1]) * 1.1)
-    with pytest.MonkeyPatch.context() as mp:  # the estimate refuses it, so no realization runs
-        refused = _refusals(mp)
-        assert main(["calibrate", *bigger]) == 2
-    # refused by the estimate: asked with the 200 Hz sums between fixes (when samples lie between fixes),
-    # then without them
-    assert refused == ["estimate_run"] * (2 if params.n_imu > params.n_gps else 1)
 
 
 def test_estimate_bounds_chunks_and_refuses():
