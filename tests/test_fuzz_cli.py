@@ -3,7 +3,8 @@
 
 Most rows call ``kfcal_helpers.cli.main(argv)`` in this process (fast); a real process is used only
 where it matters: Ctrl-C (SIGINT), a closed stdout, files the user cannot read or write (run as
-the unprivileged user ``nobody`` when the tests run as root), and the peak memory of a run.
+the unprivileged user ``nobody`` when the tests run as root).  The peak memory of the largest accepted
+runs is checked in real processes by ``tests/test_calibration_memory.py`` and ``tests/test_coop_memory.py``.
 """
 
 import json
