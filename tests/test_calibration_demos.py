@@ -138,7 +138,7 @@ def test_calibration_fast_draw_is_the_full_draw():
     assert not live.failed and live.image.value == figure_png(view.fig) and view.background.full_draws == 1
     # the kept background holds the legend and the note: a change of their text renders it again
     view.update(compute_calibration_demo(n_runs=20))
-    assert "(20 runs)" in view.legend.get_texts()[2].get_text() and fast_draw_is_full_draw(view)
+    assert "(20 realizations)" in view.legend.get_texts()[2].get_text() and fast_draw_is_full_draw(view)
     assert view.background.full_draws == 2
 
 
@@ -312,7 +312,7 @@ def test_calibration_live_demo_non_finite_result_draws_a_message():
 
 
 def test_describe_calibration_controls():
-    assert describe_controls(calibration_controls()) == ("GPS rate [Hz] 5; IMU noise W [(m/s²)²] 0.0004; GPS σ_p [m] 1; "
+    assert describe_controls(calibration_controls()) == ("GPS rate [Hz] 5; IMU noise W [(m/s²)²] 0.0004; GPS σₚ [m] 1; "
                                                          "bias prior σ [m/s²] 0.1; outage window [s] 12–18; on: GPS outage")
 
 

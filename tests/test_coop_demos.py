@@ -129,8 +129,13 @@ def test_coop_figure_and_controls(log):
     lines = [tuple(ax.lines) for ax in view.axes.flat]
     view.update(compute_coop_demo(log, "ekf", measurements=(3, 4)))
     assert [tuple(ax.lines) for ax in view.axes.flat] == lines and len(lines) == 6
-    assert "UAV GPS east" in view.fig.get_suptitle() and "2 dof" in view.fig.get_suptitle()
+    d = compute_coop_demo(log, "ekf", measurements=(3, 4))
+    title = view.fig.get_suptitle()
+    assert "UAV GPS east" in title and f"(2 dof per update, {d.n_nis} updates): {d.nis_verdict} [" in title
+    assert d.nis_verdict in ("inside", "below", "above") and (d.nis_verdict == "inside") == d.nis_inside
     assert all("[" in ax.get_ylabel() for ax in view.axes.flat)
+    # the rows say which vehicle: UGV on top, UAV below
+    assert [ax.get_ylabel().split()[0] for ax in view.axes.flat] == ["UGV"] * 3 + ["UAV"] * 3
     assert figure_png(view.fig)[:4] == b"\x89PNG"
     # the live view renders only what a change alters (x axes kept): the same image as a full draw
     assert fast_draw_is_full_draw(view)

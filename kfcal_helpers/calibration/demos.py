@@ -217,8 +217,10 @@ class CalibrationDemoFigure:
     :meth:`draw` renders it onto its Agg canvas with the x axes, the legend and the note kept from the first
     render (a :class:`kfcal_helpers.demos.CachedBackground`), the same image as ``fig.canvas.draw()``.
     ``figure``: a Figure to draw on (e.g. ``matplotlib.figure.Figure()`` for a widget, outside pyplot); default a new
-    pyplot figure.  ``t_zoom`` (s): the y axes are scaled to the curves after ``t_zoom`` (the
-    first seconds, with the 10 m prior sigma of the position, would flatten everything else).
+    pyplot figure.  ``t_zoom`` (s): the y axes are scaled to the curves after ``t_zoom``: the filter's
+    sigma is largest in the first seconds, most of all the bias's (at the defaults 2 sigma_b is 0.2 m/s^2
+    at t = 0 and at most 0.0375 m/s^2 after 2 s; 2 sigma_p is 1.99 m just after the first fix and at most
+    0.60 m after 2 s), which would flatten the rest of the curves.
     """
 
     #: inches above the panels: the two-line title (10 pt) and the row of the legend (9 pt)
@@ -294,13 +296,14 @@ class CalibrationDemoFigure:
             top = max(s2[late].max(), e2[late_fix].max(), np.abs(demo.error[late, k]).max())
             ax.set_ylim(-1.15 * top, 1.15 * top)
         self.axes[0].set_xlim(demo.t[0], demo.t[-1])
-        self.legend.get_texts()[2].set_text(f"ensemble $\\pm 2s$ ({demo.n_runs} runs)")
+        self.legend.get_texts()[2].set_text(f"ensemble $\\pm 2s$ ({demo.n_runs} realizations)")
         self.note.set_text(f"y axes scaled to t ≥ {self.t_zoom:g} s" if zoomed else "")
         lo, hi = demo.ratio_band
         gap = "" if demo.outage is None else f", outage {demo.outage[0]:g}–{demo.outage[1]:g} s"
         # short lines in normal weight: text is most of the cost of a redraw
-        self.title.set_text(f"Errors with ±2σ: GPS {p.gps_rate:g} Hz, W {p.W:.2e} (m/s²)², GPS σ_p "
-                            f"{np.sqrt(p.gps_pos_var):.2g} m, bias σ₀ {np.sqrt(p.bias_var):.2g} m/s²{gap}\n"
+        # the sigmas to 3 significant digits, as the sliders' readouts show them (10 ** 0.5 m: 3.16)
+        self.title.set_text(f"Errors with ±2σ: GPS {p.gps_rate:g} Hz, W {p.W:.2e} (m/s²)², GPS σₚ "
+                            f"{np.sqrt(p.gps_pos_var):.3g} m, bias σ₀ {np.sqrt(p.bias_var):.3g} m/s²{gap}\n"
                             f"Ensemble, all three panels: s/σ inside [{lo:.3f}, {hi:.3f}] at "
                             f"{100 * demo.inside_fraction:.1f} % of (GPS epoch, state) pairs")
         return self.fig
@@ -342,7 +345,7 @@ def calibration_controls() -> dict:
         "W": w.SelectionSlider(options=[(f"{v:.2e}", v) for v in W_STOPS], value=4e-4,
                                description="IMU noise W [(m/s²)²]", style=style, layout=width(320)),
         "gps_pos_sigma": w.FloatLogSlider(value=1.0, base=10, min=-1, max=1, step=0.05, readout_format=".2f",
-                                          description="GPS σ_p [m]", style=style, layout=width(245)),
+                                          description="GPS σₚ [m]", style=style, layout=width(245)),
         "bias_sigma": w.FloatLogSlider(value=0.1, base=10, min=-3, max=0, step=0.1, readout_format=".3f",
                                        description="bias prior σ [m/s²]", style=style, layout=width(300)),
         "outage_on": w.Checkbox(value=True, description="GPS outage", indent=False, style=style, layout=width(115)),

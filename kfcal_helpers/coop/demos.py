@@ -78,11 +78,17 @@ class CoopDemo:
         """True when the time-averaged NIS lies inside its chi-square bounds."""
         return bool(self.nis_bounds[0] <= self.nis_mean <= self.nis_bounds[1])
 
+    @property
+    def nis_verdict(self) -> str:
+        """Where the time-averaged NIS lies against its bounds: "inside", "below" or "above"."""
+        lo, hi = self.nis_bounds
+        return "inside" if self.nis_inside else ("below" if self.nis_mean < lo else "above")
+
     def summary(self) -> str:
         """One line: filter, Q scale, measurements, time-averaged NIS against its bounds."""
         names = ", ".join(MEASUREMENT_NAMES[i] for i in self.measurements)
         lo, hi = self.nis_bounds
-        verdict = "inside" if self.nis_inside else ("below" if self.nis_mean < lo else "above")
+        verdict = self.nis_verdict
         return (f"{self.filter.upper()}, Q = {self.q_scale:.3g} Qtrue, {self.nis_dim} measurements ({names}): "
                 f"time-averaged NIS {self.nis_mean:.3f}, {verdict} [{lo:.3f}, {hi:.3f}] "
                 f"(chi-square, {self.nis_dim} x {self.n_nis} dof / {self.n_nis}); NEES {self.nees_mean:.2f}")
@@ -151,7 +157,7 @@ class CoopDemoFigure:
             up, = ax.plot([], [], color="k", lw=0.8, label=r"$\pm 2\sigma$")
             down, = ax.plot([], [], color="k", lw=0.8)
             self.lines.append((err, up, down))
-            ax.set_ylabel(f"error {STATE_LABELS[i]}")
+            ax.set_ylabel(f"{'UGV' if i < 3 else 'UAV'} error {STATE_LABELS[i]}")
         for ax in self.axes[-1]:
             ax.set_xlabel("time $t$ [s]")
         height = self.fig.get_figheight()
@@ -182,9 +188,10 @@ class CoopDemoFigure:
         self.axes[0, 0].set_xlim(demo.t[0], demo.t[-1])
         lo, hi = demo.nis_bounds
         names = ", ".join(MEASUREMENT_NAMES[i] for i in demo.measurements)
+        # short lines: text is most of the cost of a redraw; the bounds are those of the average over the updates
         self.title.set_text(f"{demo.filter.upper()}, Q = {demo.q_scale:.3g} Qtrue, measurements: {names}\n"
-                            f"errors with ±2σ; time-averaged NIS {demo.nis_mean:.2f}, bounds [{lo:.2f}, {hi:.2f}] "
-                            f"({demo.nis_dim} dof)")
+                            f"errors with ±2σ; time-averaged NIS {demo.nis_mean:.2f} ({demo.nis_dim} dof per update, "
+                            f"{demo.n_nis} updates): {demo.nis_verdict} [{lo:.2f}, {hi:.2f}]")
         return self.fig
 
     def draw(self):
