@@ -303,7 +303,7 @@ class CalibrationDemoFigure:
         # short lines in normal weight: text is most of the cost of a redraw
         # the sigmas to 3 significant digits, as the sliders' readouts show them (10 ** 0.5 m: 3.16)
         self.title.set_text(f"Errors with ±2σ: GPS {p.gps_rate:g} Hz, W {p.W:.2e} (m/s²)², GPS σₚ "
-                            f"{np.sqrt(p.gps_pos_var):.3g} m, bias σ₀ {np.sqrt(p.bias_var):.3g} m/s²{gap}\n"
+                            f"{np.sqrt(p.gps_pos_var):.3g} m, bias prior σ {np.sqrt(p.bias_var):.3g} m/s²{gap}\n"
                             f"Ensemble, all three panels: s/σ inside [{lo:.3f}, {hi:.3f}] at "
                             f"{100 * demo.inside_fraction:.1f} % of (GPS epoch, state) pairs")
         return self.fig
