@@ -77,19 +77,20 @@ SHARED_SCOPES = {
 
 
 #: the files that take one worker longest (a browser, a site build, notebook runs, child processes), handed
-#: out first, longest first (worker seconds of each, measured on the 2-core machine), so that no worker is left
-#: alone with one of them at the end (xdist's own order, by the number of tests in a file, would hand them out
-#: last); the two browser tests are not the first two, so that they do not start together
+#: out first, longest first (worker seconds of each, measured on the 2-core machine on 2026-12-03), so that no
+#: worker is left alone with one of them at the end (xdist's own order, by the number of tests in a file, would
+#: hand them out last); the two files that drive Chromium (the demos, the site) are not the first two, so that
+#: they do not start together
 SLOW_FIRST = (
-    "tests/test_fuzz_cli.py",  # about 50 s: real processes (signals, streams, peak memory)
-    "tests/test_browser_demos.py",  # about 40 s: JupyterLab and Chromium
-    "tests/test_site.py",  # about 35 s: the site build and Chromium
-    "notebooks/13_coop_log_comparison.ipynb",  # with the next: one unit (SHARED_SCOPES), about 30 s
+    "tests/test_browser_demos.py",  # about 80 s: JupyterLab and Chromium
+    "tests/test_fuzz_cli.py",  # about 70 s: real processes (signals, streams, peak memory)
+    "notebooks/13_coop_log_comparison.ipynb",  # with the next: one unit (SHARED_SCOPES), about 60 s
     "tests/test_notebook13_modes.py",
-    "tests/test_calibration_memory.py",  # about 20 s: child processes at the largest runs
-    "tests/test_install.py",  # about 10 s: pip install into a fresh venv
-    "tests/test_coop_memory.py",  # about 10 s
-    "notebooks/06b_monte_carlo_bands_and_power.ipynb",  # about 9 s
+    "tests/test_site.py",  # about 45 s: the site build and Chromium
+    "tests/test_calibration_memory.py",  # about 35 s: child processes at the largest runs
+    "tests/test_install.py",  # about 15 s: pip install into a fresh venv
+    "tests/test_coop_memory.py",  # about 15 s
+    "notebooks/06b_monte_carlo_bands_and_power.ipynb",  # about 13 s
     "tests/test_figures.py",
 )
 
