@@ -194,7 +194,7 @@ def test_check_17_1_first_fix_sigma():
     assert check_demo_first_fix_sigma(list(right)).correct
     demo = compute_calibration_demo(gps_pos_var=10.0, n_runs=10)
     assert np.allclose(demo.sigma[0], right, rtol=1e-12)  # what the slider shows
-    stops = 10 ** (-1 + 0.05 * np.arange(41))              # the GPS sigma_p slider's stops (log scale)
+    stops = 10 ** (-1 + 0.05 * np.arange(41))              # the GPS sigma slider's stops (log scale)
     slider = calibration_controls()["gps_pos_sigma"]
     assert (slider.min, slider.max, slider.step, slider.base, slider.readout_format) == (-1, 1, 0.05, 10, ".2f")
     assert np.isclose(stops, 10**0.5, rtol=1e-12).any() and not np.isclose(stops, 3.0, rtol=1e-3).any()
@@ -312,7 +312,7 @@ def test_calibration_live_demo_non_finite_result_draws_a_message():
 
 
 def test_describe_calibration_controls():
-    assert describe_controls(calibration_controls()) == ("GPS rate [Hz] 5; IMU noise W [(m/s²)²] 0.0004; GPS σₚ [m] 1; "
+    assert describe_controls(calibration_controls()) == ("GPS rate [Hz] 5; IMU noise W [(m/s²)²] 0.0004; GPS σ [m] 1; "
                                                          "bias prior σ [m/s²] 0.1; outage window [s] 12–18; on: GPS outage")
 
 

@@ -302,7 +302,7 @@ class CalibrationDemoFigure:
         gap = "" if demo.outage is None else f", outage {demo.outage[0]:g}–{demo.outage[1]:g} s"
         # short lines in normal weight: text is most of the cost of a redraw
         # the sigmas to 3 significant digits, as the sliders' readouts show them (10 ** 0.5 m: 3.16)
-        self.title.set_text(f"Errors with ±2σ: GPS {p.gps_rate:g} Hz, W {p.W:.2e} (m/s²)², GPS σₚ "
+        self.title.set_text(f"Errors with ±2σ: GPS {p.gps_rate:g} Hz, W {p.W:.2e} (m/s²)², GPS σ "
                             f"{np.sqrt(p.gps_pos_var):.3g} m, bias prior σ {np.sqrt(p.bias_var):.3g} m/s²{gap}\n"
                             f"Ensemble, all three panels: s/σ inside [{lo:.3f}, {hi:.3f}] at "
                             f"{100 * demo.inside_fraction:.1f} % of (GPS epoch, state) pairs")
@@ -345,7 +345,7 @@ def calibration_controls() -> dict:
         "W": w.SelectionSlider(options=[(f"{v:.2e}", v) for v in W_STOPS], value=4e-4,
                                description="IMU noise W [(m/s²)²]", style=style, layout=width(320)),
         "gps_pos_sigma": w.FloatLogSlider(value=1.0, base=10, min=-1, max=1, step=0.05, readout_format=".2f",
-                                          description="GPS σₚ [m]", style=style, layout=width(245)),
+                                          description="GPS σ [m]", style=style, layout=width(245)),
         "bias_sigma": w.FloatLogSlider(value=0.1, base=10, min=-3, max=0, step=0.1, readout_format=".3f",
                                        description="bias prior σ [m/s²]", style=style, layout=width(300)),
         "outage_on": w.Checkbox(value=True, description="GPS outage", indent=False, style=style, layout=width(115)),
