@@ -76,6 +76,13 @@ SHARED_SCOPES = {
 }
 
 
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    """One line at the end of a run without the slow tier (``-m 'not slow'``, the default of ``pyproject.toml``)."""
+    if config.getoption("markexpr") == "not slow":
+        terminalreporter.write_line("the slow tier (real child processes at full size: signals, streams, peak memory, "
+                                    "a pip install) was left out: `pytest -m slow` runs it; .ci/run runs both")
+
+
 #: the files that take one worker longest (a browser, a site build, notebook runs, child processes), handed
 #: out first, longest first (worker seconds of each, measured on the 2-core machine on 2026-12-03), so that no
 #: worker is left alone with one of them at the end (xdist's own order, by the number of tests in a file, would
@@ -83,13 +90,13 @@ SHARED_SCOPES = {
 #: they do not start together
 SLOW_FIRST = (
     "tests/test_browser_demos.py",  # about 80 s: JupyterLab and Chromium
-    "tests/test_fuzz_cli.py",  # about 70 s: real processes (signals, streams, peak memory)
+    "tests/test_fuzz_cli.py",  # slow tier about 65 s: real processes (signals, streams); the rest about 13 s
     "notebooks/13_coop_log_comparison.ipynb",  # with the next: one unit (SHARED_SCOPES), about 60 s
     "tests/test_notebook13_modes.py",
     "tests/test_site.py",  # about 45 s: the site build and Chromium
-    "tests/test_calibration_memory.py",  # about 35 s: child processes at the largest runs
-    "tests/test_install.py",  # about 15 s: pip install into a fresh venv
-    "tests/test_coop_memory.py",  # about 15 s
+    "tests/test_calibration_memory.py",  # slow tier about 35 s: child processes at the largest runs
+    "tests/test_install.py",  # slow tier about 20 s: pip install into a fresh venv
+    "tests/test_coop_memory.py",  # slow tier about 15 s
     "notebooks/06b_monte_carlo_bands_and_power.ipynb",  # about 13 s
     "tests/test_figures.py",
 )

@@ -4,7 +4,8 @@ the filterpy engine, at the largest runs the estimate accepts.
 
 The peak is the child's own high-water mark (VmHWM, Linux): ``ru_maxrss`` of a child would include the
 resident size of this (large) test process at the moment it was spawned.  Each case searches the
-longest duration the estimate accepts (cheap: no simulation) and runs the command line there.
+longest duration the estimate accepts (cheap: no simulation) and runs the command line there.  The
+child processes are the slow tier (``pytest -m slow``; ``.ci/run`` runs it after ``pytest``).
 """
 
 import json
@@ -75,6 +76,7 @@ CASES = {  # (imu Hz, gps Hz, runs, engine, figures, between wanted, output)
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(CASES))
 def test_estimate_bounds_the_peak_of_a_child_at_the_largest_accepted_run(case, tmp_path):
     imu, gps, runs, engine, figures, between, output = CASES[case]

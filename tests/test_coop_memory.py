@@ -1,5 +1,6 @@
 """Memory of the coop truth-model test: the estimate refuses what would exceed 500 MB (the command line
-with one line and exit 2), and bounds the peak resident memory a real process reaches."""
+with one line and exit 2), and bounds the peak resident memory a real process reaches (the slow tier:
+``pytest -m slow``; ``.ci/run`` runs it after ``pytest``)."""
 
 import os
 import subprocess
@@ -49,6 +50,7 @@ def test_the_estimate_grows_with_the_runs_and_names_the_argument():
     assert 1500 < _largest_accepted("lkf") < 4000
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="VmHWM is read from /proc (Linux)")
 @pytest.mark.parametrize("filter,runs", [("lkf", None), ("ukf", 300)])
 def test_estimate_bounds_the_peak_rss_of_a_child_process(filter, runs):

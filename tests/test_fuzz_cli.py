@@ -3,7 +3,8 @@
 
 Most rows call ``kfcal_helpers.cli.main(argv)`` in this process (fast); a real process is used only
 where it matters: Ctrl-C (SIGINT), a closed stdout, files the user cannot read or write (run as
-the unprivileged user ``nobody`` when the tests run as root).  The peak memory of the largest accepted
+the unprivileged user ``nobody`` when the tests run as root).  The real-process tests are the slow
+tier (``@pytest.mark.slow``: ``pytest -m slow``; ``.ci/run`` runs it after ``pytest``).  The peak memory of the largest accepted
 runs is checked in real processes by ``tests/test_calibration_memory.py`` and ``tests/test_coop_memory.py``.
 """
 
@@ -415,6 +416,7 @@ def _complete_png(path: Path) -> bool:
     return data[:8] == b"\x89PNG\r\n\x1a\n" and data[-8:-4] == b"IEND"
 
 
+@pytest.mark.slow
 def test_ctrl_c_one_line_exit_130(tmp_path):
     """SIGINT while working (calibrate, coop, figures, side by side): exit 130, one stderr line, and
     only complete files in the output folder, no temporary left."""
@@ -431,6 +433,7 @@ def test_ctrl_c_one_line_exit_130(tmp_path):
         assert f.suffix == ".png" and not f.name.startswith(".") and _complete_png(f), f.name
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("argv", [["calibrate", "--runs", "3"], ["coop"], ["figures", "--list"]],
                          ids=["calibrate", "coop", "figures"])
 def test_closed_stdout_exits_quietly(argv):
@@ -474,6 +477,7 @@ def _wait_for_handler(p, signum, timeout=30.0) -> None:
         time.sleep(0.01)
 
 
+@pytest.mark.slow
 @posix_only
 @pytest.mark.parametrize("argv", [["calibrate", "--runs", "300000"], ["coop", "--runs", "2000", "--filter", "ukf"]],
                          ids=["calibrate", "coop"])
@@ -488,6 +492,7 @@ def test_sigterm_while_working_one_line_exit_143(argv):
     assert err == f"{PROG} {argv[0]}: terminated\n"
 
 
+@pytest.mark.slow
 @posix_only
 @pytest.mark.parametrize("argv", [["figures", "{dir}"], ["calibrate", "--runs", "20", "--figures", "{dir}"]],
                          ids=["figures", "calibrate --figures"])
@@ -531,6 +536,7 @@ print("the signal was never raised", file=sys.stderr)
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("module, signame, argv", [
     ("argparse", "SIGINT", ["calibrate", "--runs", "300000"]),  # the command line's first imports
     ("argparse", "SIGTERM", ["coop"]),
@@ -551,6 +557,7 @@ def test_signal_during_the_imports(module, signame, argv, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 @posix_only
 @pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
 def test_interrupt_line_after_a_progress_bar(signame):
@@ -703,6 +710,7 @@ CLOSED_REAL = [  # (redirection, argv, exit status, what stdout holds)
 ]
 
 
+@pytest.mark.slow
 @posix_only
 @pytest.mark.parametrize("redirect, argv, code, stdout", CLOSED_REAL,
                          ids=[f"{r} {' '.join(a)}" for r, a, _, _ in CLOSED_REAL])
@@ -727,6 +735,7 @@ ENCODED_REAL = [  # (PYTHONIOENCODING, argv, bytes stdout contains)
 ]
 
 
+@pytest.mark.slow
 @posix_only
 @pytest.mark.parametrize("encoding, argv, expected", ENCODED_REAL, ids=[f"{e}: {' '.join(a)}" for e, a, _ in ENCODED_REAL])
 def test_text_output_survives_any_encoding_real_process(encoding, argv, expected, tmp_path):
@@ -737,6 +746,7 @@ def test_text_output_survives_any_encoding_real_process(encoding, argv, expected
     assert expected in r.stdout, r.stdout[-300:]
 
 
+@pytest.mark.slow
 @posix_only
 def test_unwritable_matplotlib_directories_print_nothing():
     """HOME (so ~/.config/matplotlib, ~/.cache/matplotlib) or MPLCONFIGDIR not writable: nothing
@@ -823,6 +833,7 @@ runpy.run_module("kfcal_helpers", run_name="__main__", alter_sys=True)
 """
 
 
+@pytest.mark.slow
 def test_unreadable_and_unwritable_files_real_process():
     """Real permissions (as user nobody when running as root): an unreadable ydata.csv, and output
     folders that cannot be written, refused in one line before any long work."""

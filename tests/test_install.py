@@ -5,7 +5,8 @@ temporary folder, so the build leaves nothing in the working copy; the venv is m
 (``venv --without-pip``) and filled by this interpreter's pip through ``pip --python``, from the
 warm pip cache, without byte-compiling the installed packages (``--no-compile``: the third of the
 install's time; the command then compiles only the modules it imports, as Python does).  The command runs with its progress bar on (no ``KFCAL_QUIET``/``CI``), so every
-module the default path imports (tqdm included) must come from the declared dependencies.
+module the default path imports (tqdm included) must come from the declared dependencies.  The install
+is in the slow tier (``pytest -m slow``; ``.ci/run`` runs it after ``pytest``).
 """
 
 import os
@@ -14,6 +15,8 @@ import subprocess
 import sys
 import tomllib
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -26,6 +29,7 @@ def test_pyproject_declares_what_the_package_imports():
     assert {"ipywidgets", "pillow"} <= extras["widgets"]
 
 
+@pytest.mark.slow
 def test_plain_pip_install_runs_calibrate(tmp_path):
     src = tmp_path / "src"
     shutil.copytree(ROOT / "kfcal_helpers", src / "kfcal_helpers",
