@@ -134,6 +134,14 @@ class CachedBackground:
     lower zorder, or the same zorder and earlier in ``get_children()``), else ValueError.  A redraw
     in which an Axes with a title shows a y-axis offset text (e.g. ``1e-5``), or has a left or right
     title, is done in full: matplotlib then places the titles, which only its own draw does.
+
+    The ticks of every axis redrawn (e.g. the y axes, whose limits follow the data) are computed once
+    per redraw: matplotlib's draw of an axis asks its locator several times (for the ticks, again to
+    place the axis label beside the tick labels, again for the spine's extent: six times for one y axis
+    in ``tests/test_demos.py``).  :meth:`draw` asks the locator and the formatter once, hands the axis
+    fixed ticks with the same positions, labels and offset text for this one render, and gives the
+    axis its own locator and formatter back after it, so any later draw (a full ``fig.canvas.draw()``,
+    new limits) ticks the axis as matplotlib does.
     """
 
     def __init__(self, fig, static, key=None):
@@ -203,9 +211,35 @@ class CachedBackground:
         for ax in self.fig.axes:
             ax.apply_aspect()
             ax.title.set_position((ax.title.get_position()[0], 1.0))  # where a full draw puts it
-        for a in dynamic:
-            a.draw(renderer)
+        frozen = self._freeze_ticks(dynamic)
+        try:
+            for a in dynamic:
+                a.draw(renderer)
+        finally:
+            for ticker, locator, formatter in frozen:
+                ticker.locator, ticker.formatter = locator, formatter
         return self.fig
+
+    @staticmethod
+    def _freeze_ticks(dynamic):
+        """Give each axis among ``dynamic`` fixed major ticks for one render: the positions its own
+        locator gives for the current limits, the labels and offset text its own formatter gives them.
+        Returns ``(ticker, locator, formatter)`` of each axis, to give them back."""
+        from matplotlib.axis import Axis
+        from matplotlib.ticker import FixedFormatter, FixedLocator
+
+        frozen = []
+        for axis in dynamic:
+            if not isinstance(axis, Axis) or not axis.get_visible():
+                continue
+            ticker = axis.major
+            locator, formatter = ticker.locator, ticker.formatter
+            locs = locator()
+            fixed = FixedFormatter(formatter.format_ticks(locs))
+            fixed.set_offset_string(formatter.get_offset())
+            frozen.append((ticker, locator, formatter))
+            ticker.locator, ticker.formatter = FixedLocator(locs), fixed
+        return frozen
 
 
 #: what a redraw turns into a one-line message instead of a traceback: ``numpy.linalg.LinAlgError``

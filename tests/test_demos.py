@@ -240,6 +240,34 @@ def test_cached_background_leaves_a_y_offset_beside_a_title_to_a_full_draw():
     assert fast_draw_is_full_draw(view) and view.background.full_draws == drawn + 1
 
 
+def test_cached_background_ticks_the_changed_axes_once_and_gives_their_tickers_back():
+    view = FastToyFigure(Figure(figsize=(4.0, 3.0)))
+    view.ax.set_title("")  # no title: an offset text is drawn by the fast path too
+    view.draw()  # the first redraw renders the kept background in full
+    axis = view.ax.yaxis
+    locator, formatter = axis.get_major_locator(), axis.get_major_formatter()
+    flags = (axis.isDefault_majloc, axis.isDefault_majfmt)
+    calls = []
+    original = type(locator).__call__
+    type(locator).__call__ = lambda self: calls.append(1) or original(self)
+    try:
+        for y in ([0.0, 1.0], [0.0, -3e-4], [2.0, 7.5]):
+            view.line.set_ydata(y)
+            view.ax.set_ylim(min(y) - 0.1 * abs(max(y) - min(y)), max(y) + 0.1 * abs(max(y) - min(y)))
+            calls.clear()
+            view.draw()
+            assert len(calls) == 1  # asked once for this redraw (six times without the fixed ticks)
+            assert fast_draw_is_full_draw(view)
+        view.ax.set_ylim(1e6, 1e6 + 1e-3)  # tick labels with an offset text (+1e6)
+        assert fast_draw_is_full_draw(view) and axis.offsetText.get_text()
+        assert view.background.full_draws == 1  # every redraw above went by the fast path
+    finally:
+        type(locator).__call__ = original
+    # the axis has its own locator and formatter back, untouched: a later draw ticks it as matplotlib does
+    assert axis.get_major_locator() is locator and axis.get_major_formatter() is formatter
+    assert (axis.isDefault_majloc, axis.isDefault_majfmt) == flags
+
+
 def test_cached_background_validates_and_live_demo_uses_it():
     view = FastToyFigure(Figure(figsize=(4.0, 3.0)))
     with pytest.raises(ValueError, match="fig must be a matplotlib Figure"):
