@@ -105,6 +105,21 @@ def _interleaved(rows, repeat):
     return [[(min(t), float(np.median(t))) for t in out] for out in times]
 
 
+def _time_settings(view, compute, settings, repeat):
+    """Time each of ``settings`` (``(name, kwargs)``) round-robin (:func:`_interleaved`): ``compute(**kwargs)``,
+    then ``view``'s update and ``draw()``, update and full draw, update, ``draw()`` and PNG.  Returns the
+    demo of each setting and, per setting, (best, median) of those four in seconds."""
+    demos = [compute(**kw) for _, kw in settings]
+    rows = [(lambda kw=kw: compute(**kw),
+             lambda demo=demo: (view.update(demo), view.draw()),
+             lambda demo=demo: (view.update(demo), view.fig.canvas.draw()),
+             lambda demo=demo: (view.update(demo), figure_png(view.draw(), drawn=True)))
+            for (_, kw), demo in zip(settings, demos)]
+    view.update(demos[-1])
+    view.draw()  # the kept background rendered before the timings
+    return demos, _interleaved(rows, repeat)
+
+
 def _row(name, compute, draw, full, png):
     (cb, cm), (db, dm), (fb, _), (pb, _) = compute, draw, full, png
     return (f"{name:<34} {1e3 * cb:8.1f} {1e3 * db:8.1f} {1e3 * fb:8.1f} {1e3 * (cb + db):8.1f} "
@@ -137,17 +152,10 @@ def main(argv=None) -> int:
     print(HEADER)
     view = CalibrationDemoFigure(Figure(figsize=CALIBRATION_FIGSIZE))  # the live view's size
     compute_calibration_demo(n_runs=args.runs)  # warm-up: imports, caches
-    rows = []
-    for name, kw in CALIBRATION_SETTINGS:
-        demo = compute_calibration_demo(n_runs=args.runs, **kw)
-        rows.append((lambda kw=kw: compute_calibration_demo(n_runs=args.runs, **kw),
-                     lambda demo=demo: (view.update(demo), view.draw()),
-                     lambda demo=demo: (view.update(demo), view.fig.canvas.draw()),
-                     lambda demo=demo: (view.update(demo), figure_png(view.draw(), drawn=True))))
-    view.update(demo)
-    view.draw()
+    _, times = _time_settings(view, lambda **kw: compute_calibration_demo(n_runs=args.runs, **kw),
+                              CALIBRATION_SETTINGS, args.repeat)
     worst = 0.0
-    for (name, _), (compute, draw, full, png) in zip(CALIBRATION_SETTINGS, _interleaved(rows, args.repeat)):
+    for (name, _), (compute, draw, full, png) in zip(CALIBRATION_SETTINGS, times):
         if "not on the slider" not in name:
             worst = max(worst, compute[0] + draw[0])
         print(_row(name, compute, draw, full, png))
@@ -157,18 +165,9 @@ def main(argv=None) -> int:
     log = simulate().log()
     p = log.params()
     cview = CoopDemoFigure(Figure(figsize=COOP_FIGSIZE))
-    rows, demos = [], []
-    for name, kw in COOP_SETTINGS:
-        demo = compute_coop_demo(log, **kw)
-        demos.append(demo)
-        rows.append((lambda kw=kw: compute_coop_demo(log, **kw),
-                     lambda demo=demo: (cview.update(demo), cview.draw()),
-                     lambda demo=demo: (cview.update(demo), cview.fig.canvas.draw()),
-                     lambda demo=demo: (cview.update(demo), figure_png(cview.draw(), drawn=True))))
-    cview.update(demo)
-    cview.draw()
+    demos, times = _time_settings(cview, lambda **kw: compute_coop_demo(log, **kw), COOP_SETTINGS, args.repeat)
     coop_worst = 0.0
-    for (name, _), demo, (compute, draw, full, png) in zip(COOP_SETTINGS, demos, _interleaved(rows, args.repeat)):
+    for (name, _), demo, (compute, draw, full, png) in zip(COOP_SETTINGS, demos, times):
         reference = _time(lambda: run_filter(demo.filter, log.y, p, Q=demo.q_scale * p.Qtrue, truth=log.truth,
                                              measurements=demo.measurements), max(1, args.repeat // 2))
         coop_worst = max(coop_worst, compute[0] + draw[0])
