@@ -19,7 +19,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.axes import Axes
+from matplotlib.axis import Axis
 from matplotlib.figure import Figure
+from matplotlib.ticker import FixedFormatter, FixedLocator
 
 __all__ = ["NOTEBOOK_WIDTH_PX", "MIN_TEXT_PX", "new_figure", "figure_png", "smallest_text", "CachedBackground", "DEMO_FAILURES", "require_finite_demo",
            "failure_message", "describe_controls", "LiveDemo"]
@@ -225,9 +227,6 @@ class CachedBackground:
         """Give each axis among ``dynamic`` fixed major ticks for one render: the positions its own
         locator gives for the current limits, the labels and offset text its own formatter gives them.
         Returns ``(ticker, locator, formatter)`` of each axis, to give them back."""
-        from matplotlib.axis import Axis
-        from matplotlib.ticker import FixedFormatter, FixedLocator
-
         frozen = []
         for axis in dynamic:
             if not isinstance(axis, Axis) or not axis.get_visible():
