@@ -272,9 +272,10 @@ def _open(driver, lab, name):
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
 
-    items = [e for e in driver.find_elements(By.CSS_SELECTOR, "#filebrowser .jp-DirListing-itemText")
-             if e.text.strip() == name] if driver.current_url.startswith(lab["url"]) else []
-    if items:
+    if driver.current_url.startswith(lab["url"]):
+        items = [e for e in driver.find_elements(By.CSS_SELECTOR, "#filebrowser .jp-DirListing-itemText")
+                 if e.text.strip() == name]
+        assert len(items) == 1, f"{name} is listed {len(items)} times in JupyterLab's file browser"
         ActionChains(driver).double_click(items[0]).perform()
     else:
         driver.get(f"{lab['url']}/lab/tree/{name}?token={lab['token']}")
