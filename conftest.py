@@ -2,6 +2,7 @@
 pytest-xdist groups the test files (files sharing a session fixture run on one worker)."""
 
 import os
+import signal
 
 import pytest
 
@@ -21,6 +22,24 @@ def _notebook_kernels_over_ipc():
 
 
 _notebook_kernels_over_ipc()
+
+
+def _answer_ctrl_c():
+    """SIGINT back to Python's default (KeyboardInterrupt) when this process started with it ignored.
+
+    A job put in the background by a script (``bash .ci/run &``: a non-interactive shell) starts with
+    SIGINT ignored, and every process it starts inherits that: the command line then rightly leaves
+    SIGINT alone, and the Ctrl-C tests of ``tests/test_fuzz_cli.py`` fail with exit status 0.  Taken
+    back here, in pytest and in each worker, the processes the tests start get SIGINT's default, as
+    from a terminal.  Returns whether it was ignored.
+    """
+    if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
+        return False
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    return True
+
+
+_answer_ctrl_c()
 
 
 @pytest.fixture(scope="session")

@@ -453,6 +453,31 @@ def test_closed_stdout_exits_quietly(argv):
 posix_only = pytest.mark.skipif(os.name != "posix", reason="POSIX signals and descriptors (sh redirections)")
 LOUD_ENV = {k: v for k, v in ENV.items() if k not in ("KFCAL_QUIET", "CI")}  # progress bars on
 
+#: run in a process that starts with SIGINT ignored: the root conftest.py, then a command line given Ctrl-C
+_AFTER_CONFTEST = """
+import runpy, signal, subprocess, sys, time
+ignored = signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+runpy.run_path(sys.argv[1])  # the root conftest.py, as pytest and each worker load it
+p = subprocess.Popen([sys.executable, "-m", "kfcal_helpers", "calibrate", "--runs", "300000"],
+                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+time.sleep(4.0)  # past the interpreter's start
+p.send_signal(signal.SIGINT)
+err = p.communicate(timeout=60)[1]
+print(ignored, p.returncode, repr(err))
+"""
+
+
+@pytest.mark.slow
+@posix_only
+def test_ctrl_c_tests_hold_when_pytest_starts_with_sigint_ignored():
+    """A script's background job (``bash .ci/run &``) starts with SIGINT ignored, and what it starts inherits
+    that; the root conftest.py takes SIGINT's default back, so the command line the tests start still
+    answers Ctrl-C with exit 130 and its one line (without it: exit 0 after the whole run)."""
+    conftest = Path(__file__).resolve().parents[1] / "conftest.py"
+    r = subprocess.run(["sh", "-c", 'trap "" INT; exec "$@"', "sh", sys.executable, "-c", _AFTER_CONFTEST,
+                        str(conftest)], capture_output=True, text=True, env=ENV, timeout=120)
+    assert r.stdout.strip().split(maxsplit=2) == ["True", "130", repr(f"{PROG} calibrate: interrupted\n")], (r.stdout, r.stderr)
+
 
 def _caught(pid: int, signum: int) -> bool | None:
     """Whether process ``pid`` has a handler for ``signum`` (Linux: /proc), None where unknown."""
