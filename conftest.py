@@ -31,12 +31,10 @@ def _answer_ctrl_c():
     SIGINT ignored, and every process it starts inherits that: the command line then rightly leaves
     SIGINT alone, and the Ctrl-C tests of ``tests/test_fuzz_cli.py`` fail with exit status 0.  Taken
     back here, in pytest and in each worker, the processes the tests start get SIGINT's default, as
-    from a terminal.  Returns whether it was ignored.
+    from a terminal.
     """
-    if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
-        return False
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    return True
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 _answer_ctrl_c()
