@@ -3,8 +3,14 @@
 With N Monte Carlo runs and a statistic of dimension n, the run-averaged NEES
 (or NIS) of a consistent filter is chi-square with N*n degrees of freedom,
 divided by N.  The two-sided acceptance region at significance ``alpha`` is
-``[chi2.ppf(alpha/2, N*n)/N, chi2.ppf(1 - alpha/2, N*n)/N]``.  The same formula
-with N replaced by the number of time steps K bounds the time average of one run.
+``[chi2.ppf(alpha/2, N*n)/N, chi2.ppf(1 - alpha/2, N*n)/N]``.
+
+The same formula with N replaced by the number of time steps K bounds the time average of one run's
+NIS, and only the NIS: the innovations of a consistent filter are white, so its K NIS values are
+independent.  The estimation errors are not: the error at step k+1 carries most of the error at step
+k, so one run's K NEES values are correlated and their time average scatters far more than
+chi-square(n*K)/K allows.  No time-average band is given for the NEES (a run-averaged NEES at one
+step, over independent runs, keeps its band); ``tests/test_consistency.py`` shows both by Monte Carlo.
 
 The sampling bands of Monte Carlo statistics, at per-entry significance ``level`` (two-sided), for
 ``n`` independent realizations: :func:`t_band` (a mean, with the ensemble standard deviation),
@@ -39,7 +45,9 @@ def chi2_bounds(dim: int, n_samples: int, alpha: float = 0.05) -> tuple[float, f
     dim : int, >= 1
         Dimension of the state (NEES) or measurement (NIS).
     n_samples : int, >= 1
-        Number of Monte Carlo runs averaged (or time steps, for a time average).
+        Number of independent chi-square terms averaged: Monte Carlo runs (NEES or NIS at one step), or
+        the time steps of one run's NIS (its innovations are white; one run's NEES values are not
+        independent, so no time average of the NEES has this band).
     alpha : float in [1e-14, 1) (:data:`~kfcal_helpers.validation.MIN_BAND_ALPHA`)
         Significance level of the two-sided test (a Bonferroni-split level included); below the
         limit the upper quantile ``ppf(1 - alpha/2)`` would be infinite.

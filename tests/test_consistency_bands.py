@@ -63,3 +63,66 @@ def test_levels_on_simulated_draws():
 def test_arguments_are_checked(call, word):
     with pytest.raises(ValueError, match=word):
         call()
+
+
+def _cv_toy(n_runs: int, n_steps: int, seed: int, dt: float = 1.0):
+    """A consistent filter on a 1-D constant-velocity toy (state [p, v], white-acceleration noise of unit
+    intensity, unit-variance position fixes every step), vectorised over runs: NEES and NIS, each
+    (n_runs, n_steps), and the draws of run 0 (truth, fixes) for the filterpy comparison."""
+    rng = np.random.default_rng(seed)
+    F = np.array([[1.0, dt], [0.0, 1.0]])
+    Q = np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+    H, R, P0 = np.array([[1.0, 0.0]]), 1.0, np.diag([10.0, 1.0])
+    x = rng.multivariate_normal(np.zeros(2), P0, n_runs)
+    x_hat, P = np.zeros((n_runs, 2)), P0.copy()
+    chol_q = np.linalg.cholesky(Q)
+    nees, nis = np.empty((n_runs, n_steps)), np.empty((n_runs, n_steps))
+    truth0, z0 = [], []
+    for k in range(n_steps):
+        x = x @ F.T + rng.standard_normal((n_runs, 2)) @ chol_q.T
+        z = x[:, 0] + np.sqrt(R) * rng.standard_normal(n_runs)
+        x_hat, P = x_hat @ F.T, F @ P @ F.T + Q
+        S = (H @ P @ H.T)[0, 0] + R
+        gain = (P @ H.T)[:, 0] / S
+        y = z - x_hat[:, 0]
+        nis[:, k] = y**2 / S
+        x_hat, P = x_hat + y[:, None] * gain, P - np.outer(gain, gain) * S
+        e = x - x_hat
+        nees[:, k] = np.einsum("ni,ij,nj->n", e, np.linalg.inv(P), e)
+        truth0.append(x[0].copy()), z0.append(z[0])
+    return nees, nis, (F, Q, H, R, P0, np.array(truth0), np.array(z0))
+
+
+def test_time_average_band_holds_for_nis_not_for_nees():
+    """consistency's docstring: chi2_bounds(dim, K) bounds one run's time-averaged NIS (white
+    innovations), not its time-averaged NEES (errors correlated from step to step), so no one-run NEES
+    band is reported (coop.filters.log_summary).  2000 runs x 100 steps of a consistent toy filter,
+    checked equal to filterpy on run 0."""
+    from filterpy.kalman import KalmanFilter
+
+    n_runs, n_steps, alpha = 2000, 100, 0.05
+    nees, nis, (F, Q, H, R, P0, truth0, z0) = _cv_toy(n_runs, n_steps, seed=7)
+    kf = KalmanFilter(dim_x=2, dim_z=1)
+    kf.x, kf.P, kf.F, kf.Q, kf.H, kf.R = np.zeros((2, 1)), P0.copy(), F, Q, H, np.array([[R]])
+    for k in range(n_steps):
+        kf.predict()
+        kf.update(np.array([[z0[k]]]))
+        e = truth0[k][:, None] - kf.x
+        assert np.isclose((e.T @ np.linalg.inv(kf.P) @ e).item(), nees[0, k], rtol=1e-9)
+        assert np.isclose(kf.mahalanobis**2, nis[0, k], rtol=1e-9)
+
+    # the share of runs whose time average lies inside chi2_bounds(dim, K): 1 - alpha if the band is right
+    share_sd = np.sqrt(alpha * (1 - alpha) / n_runs)
+    nis_avg, nees_avg = nis.mean(axis=1), nees.mean(axis=1)
+    lo, hi = chi2_bounds(1, n_steps, alpha)
+    nis_share = np.mean((nis_avg >= lo) & (nis_avg <= hi))
+    lo, hi = chi2_bounds(2, n_steps, alpha)
+    nees_share = np.mean((nees_avg >= lo) & (nees_avg <= hi))
+    assert abs(nis_share - (1 - alpha)) < 4 * share_sd            # 0.95 within 4 binomial SDs (0.0049)
+    assert nees_share < 1 - alpha - 4 * share_sd                   # about 0.86: the band is too narrow
+    # why: the time average's variance over runs against the 2 dim / K the independent-terms band assumes
+    lo_v, hi_v = variance_band(np.array([1.0]), n_runs - 1, 1e-3)
+    nis_ratio = np.var(nis_avg, ddof=1) / (2 * 1 / n_steps)
+    nees_ratio = np.var(nees_avg, ddof=1) / (2 * 2 / n_steps)
+    assert lo_v[0] < nis_ratio < hi_v[0]                            # about 1.0
+    assert nees_ratio > hi_v[0]                                     # about 1.7
