@@ -146,7 +146,7 @@ class CoopParams:
     duration: float = 100.0  #: length of a run, s
     x0: np.ndarray = _vector(10.0, 0.0, np.pi / 2, -60.0, 0.0, -np.pi / 2)  #: nominal initial state
     u0: np.ndarray = _vector(2.0, -np.pi / 18, 12.0, np.pi / 25)  #: nominal (constant) control
-    Qtrue: np.ndarray = _diag(0.001, 0.001, 0.01, 0.001, 0.001, 0.01)  #: process noise per step
+    Qtrue: np.ndarray = _diag(0.001, 0.001, 0.01, 0.001, 0.001, 0.01)  #: covariance of w_k (state: Omega Qtrue Omega^T)
     Rtrue: np.ndarray = _diag(0.0225, 64.0, 0.04, 36.0, 36.0)  #: measurement noise
     P0: np.ndarray = _diag(1.0, 1.0, 0.01, 1.0, 1.0, 0.01)  #: initial covariance (m^2, rad^2)
     noise_model: str = "dt"  #: how w_k enters the state: "dt" (Omega = dt I) or "identity" (Omega = I)
