@@ -62,6 +62,7 @@ def _check(nb, mode):
     for cell in code:
         assert not any(o.get("output_type") == "error" for o in cell.get("outputs", []))
         assert "nan" not in _text(cell).lower().replace("first column nan", ""), _text(cell)
+        assert "Warning" not in _text(cell), _text(cell)
 
 
 def test_without_the_course_log(monkeypatch, nbval_runs):
@@ -80,7 +81,8 @@ def test_with_the_course_log(monkeypatch, nbval_runs):
 @pytest.mark.parametrize("make", [
     lambda: simulate(replace(CoopParams(), Qtrue=4.0 * CoopParams().Qtrue), seed=7).log(),
     lambda: simulate(CoopParams(duration=0.1), seed=3).log(),
-], ids=["another Q", "2 samples"])
+    lambda: simulate(CoopParams(duration=10.0), seed=3).log(),
+], ids=["another Q", "2 samples", "101 samples"])
 def test_with_another_valid_log(make, tmp_path, monkeypatch):
     log = make()
     assert not is_course_log(log)
@@ -90,6 +92,12 @@ def test_with_another_valid_log(make, tmp_path, monkeypatch):
         joined = "\n".join(_text(c) for c in nb.cells if c.cell_type == "code")
         assert "only 1 measurement(s): too few for a 50-step moving average" in joined
         assert "too few for autocorrelations" in joined
+    if log.n_samples == 101:  # a moving average, but no window after t = 80 s
+        joined = "\n".join(_text(c) for c in nb.cells if c.cell_type == "code")
+        assert "after t = 80 s: no complete window (this log ends at t = 10.0 s)" in joined
+    if log.n_samples == 1001:  # Qtrue x 4: the EKF and the UKF part by more than the course log's 0.15 m
+        joined = "\n".join(_text(c) for c in nb.cells if c.cell_type == "code")
+        assert "on this log: the EKF and the UKF differ by up to" in joined
 
 
 def test_course_log_fingerprint_tells_logs_apart():
