@@ -443,3 +443,37 @@ def test_readme_and_site_credit_the_courses_and_filterpy(site):
                      "MAE 271A", "University of California, Los Angeles", "filterpy", "Roger R. Labbe Jr.",
                      "MathJax"):
             assert name in text, f"{where} does not name {name!r}"
+
+
+_OUTPUT_IMAGES_JS = """
+return Array.from(document.querySelectorAll('div.cell_output img')).map(i => {
+    const r = i.getBoundingClientRect(), s = getComputedStyle(i);
+    const px = (...names) => names.reduce((sum, n) => sum + parseFloat(s[n] || 0), 0);
+    const a = i.closest('a');
+    // the content box: the dark theme pads images
+    const shown = [r.width - px('paddingLeft', 'paddingRight', 'borderLeftWidth', 'borderRightWidth'),
+                   r.height - px('paddingTop', 'paddingBottom', 'borderTopWidth', 'borderBottomWidth')];
+    return {src: i.getAttribute('src'), natural: [i.naturalWidth, i.naturalHeight], shown: shown,
+            href: a ? a.getAttribute('href') : null};
+});
+"""
+
+
+@needs_browser
+def test_output_figures_in_the_browser(site, browser):
+    """In a 1280 px window each figure a cell printed is shown no wider than its own pixels, with its
+    shape kept, and the link around it opens its file."""
+    problems, n = [], 0
+    for name in LESSONS:
+        _open(browser, (site / "lessons" / f"{name}.html").as_uri())
+        for image in browser.execute_script(_OUTPUT_IMAGES_JS):
+            (nw, nh), (w, h) = image["natural"], image["shown"]
+            n += 1
+            if not (nw and w):
+                problems.append(f"{name}: {image['src']} not shown")
+            elif w > nw + 0.5 or abs(h / w - nh / nw) > 0.02:
+                problems.append(f"{name}: {image['src']} is {nw} x {nh} px, shown {w:.0f} x {h:.0f}")
+            elif image["href"] != image["src"]:
+                problems.append(f"{name}: {image['src']} links to {image['href']!r}")
+    assert not problems, "\n".join(problems[:20])
+    assert n >= len(LESSONS)
