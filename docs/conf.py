@@ -7,8 +7,10 @@ Build it, with no network, from the repository's root:
 then open ``build/site/index.html`` in a browser (also from a file share or an intranet server).
 The notebooks are committed executed and are NOT run here (``nb_execution_mode = "off"``); the
 solutions in ``notebooks/solutions/`` are not part of the site. MathJax is served from the site
-itself (``_static/mathjax``, from the ``sphinx-mathjax-offline`` package), so neither the build nor
-a reader's browser fetches anything from the internet.
+itself (``_static/mathjax``, from the ``sphinx-mathjax-offline`` package, with MathJax's license,
+``docs/_mathjax/LICENSE``, as ``_static/mathjax/LICENSE``), so neither the build nor a reader's
+browser fetches anything from the internet.  An image a notebook cell printed is shown at most as
+wide as the page's column and links to its file: a click opens it at full size.
 
 Sphinx reads documents only below ``docs/``, so each build first copies the lesson notebooks
 ``notebooks/[0-9][0-9]*_*.ipynb`` into ``docs/lessons/`` (ignored by git), changing two things in
@@ -153,7 +155,7 @@ language = "en"
 
 extensions = ["myst_nb", "sphinx.ext.mathjax"]
 root_doc = "index"
-exclude_patterns = ["_build", "**/.ipynb_checkpoints", ".gitignore"]
+exclude_patterns = ["_build", "_mathjax", "**/.ipynb_checkpoints", ".gitignore"]
 
 # notebooks: as committed, executed; never run at build time
 nb_execution_mode = "off"
@@ -170,6 +172,8 @@ if _MATHJAX_PACKAGE is None:
     raise ConfigError("the package sphinx-mathjax-offline (MathJax for the site) is not installed: "
                       "pip install -r environment.txt")
 MATHJAX_SOURCE = Path(_MATHJAX_PACKAGE.origin).parent / "static" / "mathjax"
+#: MathJax's license (Apache 2.0), which the package does not ship; it travels with the built site
+MATHJAX_LICENSE = DOCS / "_mathjax" / "LICENSE"
 mathjax_path = "mathjax/tex-chtml.js"  # relative to _static/
 # MathJax's other combined builds and its SVG output are not used by tex-chtml.js
 _UNUSED_MATHJAX = {"tex-chtml-full-speech.js", "tex-chtml-full.js", "tex-mml-chtml.js", "tex-mml-svg.js",
@@ -204,9 +208,31 @@ def _copy_mathjax(app, exception):
         shutil.rmtree(target)
     shutil.copytree(MATHJAX_SOURCE, target,
                     ignore=lambda folder, names: [n for n in names if n in _UNUSED_MATHJAX])
+    shutil.copyfile(MATHJAX_LICENSE, target / "LICENSE")
+
+
+def _output_images_link_full_size(app, doctree, docname):
+    """Give every image a notebook cell printed its own pixel width.  The page's column (688 px in a
+    1280 px window) shrinks a wider figure, so its labels become hard to read; with a width given,
+    Sphinx links the image to its file (``html_scaled_image_link``): a click opens it at full size."""
+    from docutils import nodes
+    from sphinx.util.images import get_image_size
+
+    for image in doctree.findall(nodes.image):
+        parent = image.parent
+        while parent is not None and "cell_output" not in parent.get("classes", ()):
+            parent = parent.parent
+        if parent is None or any(key in image for key in ("width", "height", "scale")):
+            continue
+        source = image.get("candidates", {}).get("*", image["uri"])
+        size = get_image_size(Path(app.srcdir) / source)
+        if size is not None:
+            image["width"] = f"{size[0]}px"
+            image["classes"].append("kfcal-output-figure")
 
 
 def setup(app):
     # MathJax on every page: the lesson titles in the navigation hold math, also on pages without any
     app.set_html_assets_policy("always")
+    app.connect("doctree-resolved", _output_images_link_full_size)
     app.connect("build-finished", _copy_mathjax)

@@ -40,7 +40,9 @@ STYLES = {
                  "axes.titlesize": 11, "axes.labelsize": 10, "legend.fontsize": 9, "lines.linewidth": 1.2},
     "slides": {**_COMMON, "figure.figsize": SLIDE_SIZE, "figure.dpi": SLIDE_DPI, "font.size": 18,
                "axes.titlesize": 20, "axes.labelsize": 18, "xtick.labelsize": 15, "ytick.labelsize": 15,
-               "legend.fontsize": 14, "figure.titlesize": 22, "lines.linewidth": 2.0, "lines.markersize": 7},
+               "legend.fontsize": 14, "figure.titlesize": 22,
+               # the title clear of a y tick label at the axes' top (half a 15 pt label high)
+               "axes.titlepad": 10, "lines.linewidth": 2.0, "lines.markersize": 7},
 }
 
 

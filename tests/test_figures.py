@@ -104,3 +104,21 @@ def test_write_figures_validates_its_arguments(tmp_path):
     with pytest.raises(ValueError, match="names"):
         write_figures(tmp_path, names=[])
     assert list(tmp_path.iterdir()) == [tmp_path / "f"]
+
+
+def test_readme_slides_folder_is_ignored_by_git():
+    """README's ``python -m kfcal_helpers figures slides/``, run in a clone, writes nothing git would add."""
+    import re
+    import shutil
+    import subprocess
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    if shutil.which("git") is None or not (root / ".git").exists():
+        pytest.skip("not a git checkout")
+    folder = re.search(r"python -m kfcal_helpers figures (\S+?)/?`", (root / "README.md").read_text(encoding="utf-8"))
+    assert folder, "README no longer shows the figures command with a folder"
+    for ext in ("png", "svg"):
+        path = f"{folder.group(1)}/{FIGURES[0].name}.{ext}"
+        run = subprocess.run(["git", "check-ignore", "-q", "--no-index", path], cwd=root)
+        assert run.returncode == 0, f"{path} would be added by git (.gitignore)"

@@ -305,3 +305,175 @@ def test_search_finds_a_word(site, browser):
     found = {h.get_attribute("href").split("/")[-1].split(".html")[0] for h in hits}
     assert len(found & set(LESSONS)) >= 3, f"search for 'filterpy' found {sorted(found)}"
     assert not [m for m in _console(browser) if m.startswith("SEVERE")]
+
+
+def test_mathjax_license_travels_with_the_site(site):
+    """MathJax (Apache License 2.0) is redistributed inside the site, so its license goes with it,
+    linked from the start page."""
+    license_file = site / "_static" / "mathjax" / "LICENSE"
+    assert license_file.is_file(), "MathJax's license is not in the built site"
+    text = license_file.read_text(encoding="utf-8")
+    assert "MathJax" in text and "Apache License" in text and "Version 2.0, January 2004" in text
+    assert "END OF TERMS AND CONDITIONS" in text  # the whole license, not a pointer to it
+    assert "_static/mathjax/LICENSE" in _parse(site / "index.html").links
+
+
+class _OutputImages(html.parser.HTMLParser):
+    """Each <img> inside a notebook cell's output (``div.cell_output``): its src, its style and
+    the href of the link around it (None without one)."""
+
+    def __init__(self):
+        super().__init__()
+        self.divs: list[bool] = []  # for each open div: is it a cell output?
+        self.link: list[str | None] = []
+        self.images: list[tuple[str, str, str | None]] = []
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        if tag == "div":
+            self.divs.append("cell_output" in (attrs.get("class") or "").split())
+        elif tag == "a":
+            self.link.append(attrs.get("href"))
+        elif tag == "img" and any(self.divs):
+            self.images.append((attrs["src"], attrs.get("style") or "", self.link[-1] if self.link else None))
+
+    def handle_endtag(self, tag):
+        if tag == "div" and self.divs:
+            self.divs.pop()
+        elif tag == "a" and self.link:
+            self.link.pop()
+
+
+def test_output_figures_open_full_size(site):
+    """The page's column (688 px in a 1280 px window) shrinks a figure wider than it; every figure a
+    cell printed is shown at most at its own pixel width and links to its file, which a click opens at
+    full size."""
+    import struct
+
+    checked, problems = 0, []
+    for page in _pages(site):
+        parser = _OutputImages()
+        parser.feed(page.read_text(encoding="utf-8"))
+        for src, style, href in parser.images:
+            name = f"{page.relative_to(site)}: {src}"
+            if href != src:
+                problems.append(f"{name} links to {href!r}, not to its file")
+                continue
+            data = (page.parent / urllib.parse.unquote(src)).read_bytes()
+            if data[:8] == b"\x89PNG\r\n\x1a\n":
+                width = struct.unpack(">I", data[16:20])[0]
+                if f"width: {width}px" not in style:
+                    problems.append(f"{name} is {width} px wide, its style says {style!r}")
+            checked += 1
+    assert not problems, "\n".join(problems[:20])
+    assert checked >= len(LESSONS), f"only {checked} output figures found"
+
+
+def _heading(path: Path, pattern: str) -> str | None:
+    """The first markdown line of ``path`` (a MyST source) that matches ``pattern``, without it."""
+    for line in path.read_text(encoding="utf-8").splitlines():
+        match = re.fullmatch(pattern, line)
+        if match:
+            return match.group(1)
+    return None
+
+
+def _readme_titles() -> dict[str, str]:
+    """{notebook stem: title} from README's notebook table, whose rows start ``| [NN · Title](notebooks/stem.ipynb) |``."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    return {m.group(2): m.group(1) for m in re.finditer(r"^\| \[([^\]]+)\]\(notebooks/([^)/]+)\.ipynb\) \|", text, re.M)}
+
+
+def _text(html_fragment: str) -> str:
+    """The text of an HTML fragment (tags dropped, entities and typographic quotes made plain)."""
+    import html as html_module
+
+    text = html_module.unescape(re.sub(r"<[^>]+>", "", html_fragment))
+    return re.sub(r"\s+", " ", text.replace("’", "'").replace("‘", "'")).strip()
+
+
+def test_lesson_titles_agree_in_notebooks_readme_and_site(site):
+    """One title style, "NN · Title", for every lesson: the first heading of its source and of its
+    rendered notebook, its solutions' heading ("Solutions · NN · Title"), README's notebook table and
+    the site's page (its title and first heading).  README's title is the heading up to its subtitle
+    (after a colon or a comma), the solutions' heading's title."""
+    import json
+
+    readme = _readme_titles()
+    assert sorted(readme) == LESSONS, f"README's table lists {sorted(readme)}"
+    problems = []
+    for stem in LESSONS:
+        number = stem.split("_")[0]
+        source = ROOT / "notebooks" / "source" / f"{stem}.md"
+        heading = _heading(source, r"# (.+)")
+        title = readme[stem]
+        if not heading.startswith(f"{number} · "):
+            problems.append(f"{stem}: heading {heading!r} does not start with {number + ' · '!r}")
+        if not (heading == title or heading.startswith(title + ":") or heading.startswith(title + ",")):
+            problems.append(f"{stem}: README's title {title!r} is not the heading {heading!r} or its start")
+        solutions = _heading(source, r"# (Solutions .+)")
+        if solutions is not None and solutions != f"Solutions · {title}":
+            problems.append(f"{stem}: solutions heading {solutions!r}, README {title!r}")
+        for path in (ROOT / "notebooks" / f"{stem}.ipynb", ROOT / "notebooks" / "solutions" / f"{stem}.ipynb"):
+            if not path.exists():
+                continue
+            cells = json.loads(path.read_text(encoding="utf-8"))["cells"]
+            first = "".join(cells[0]["source"]).splitlines()[0]
+            expected = f"# {heading}" if path.parent.name == "notebooks" else f"# {solutions}"
+            if first != expected:
+                problems.append(f"{path.relative_to(ROOT)}: first line {first!r}, expected {expected!r}")
+        page = (site / "lessons" / f"{stem}.html").read_text(encoding="utf-8")
+        page_title = _text(re.search(r"<title>(.*?)</title>", page, re.S).group(1))
+        h1 = _text(re.search(r"<h1[^>]*>(.*?)</h1>", page, re.S).group(1)).removesuffix("#").strip()
+        plain = re.sub(r"\$([^$]*)\$", r"\\(\1\\)", heading).replace("’", "'")
+        if not page_title.startswith(plain + " — "):
+            problems.append(f"{stem}: the site's page title {page_title!r}, the heading {plain!r}")
+        if not h1.startswith(title.split("$")[0]):
+            problems.append(f"{stem}: the site's first heading {h1!r}, README {title!r}")
+    assert not problems, "\n".join(problems)
+
+
+def test_readme_and_site_credit_the_courses_and_filterpy(site):
+    """README and the site's start page name the courses whose problems, numbers and notation the
+    lessons use, and filterpy's author."""
+    readme = re.sub(r"\s+", " ", (ROOT / "README.md").read_text(encoding="utf-8"))
+    start = _text((site / "index.html").read_text(encoding="utf-8"))
+    for text, where in ((readme, "README"), (start, "the site's start page")):
+        for name in ("ASEN 5044", "Statistical Estimation for Dynamical Systems", "University of Colorado Boulder",
+                     "MAE 271A", "University of California, Los Angeles", "filterpy", "Roger R. Labbe Jr.",
+                     "MathJax"):
+            assert name in text, f"{where} does not name {name!r}"
+
+
+_OUTPUT_IMAGES_JS = """
+return Array.from(document.querySelectorAll('div.cell_output img')).map(i => {
+    const r = i.getBoundingClientRect(), s = getComputedStyle(i);
+    const px = (...names) => names.reduce((sum, n) => sum + parseFloat(s[n] || 0), 0);
+    const a = i.closest('a');
+    // the content box: the dark theme pads images
+    const shown = [r.width - px('paddingLeft', 'paddingRight', 'borderLeftWidth', 'borderRightWidth'),
+                   r.height - px('paddingTop', 'paddingBottom', 'borderTopWidth', 'borderBottomWidth')];
+    return {src: i.getAttribute('src'), natural: [i.naturalWidth, i.naturalHeight], shown: shown,
+            href: a ? a.getAttribute('href') : null};
+});
+"""
+
+
+@needs_browser
+def test_output_figures_in_the_browser(site, browser):
+    """In a 1280 px window each figure a cell printed is shown no wider than its own pixels, with its
+    shape kept, and the link around it opens its file."""
+    problems, n = [], 0
+    for name in LESSONS:
+        _open(browser, (site / "lessons" / f"{name}.html").as_uri())
+        for image in browser.execute_script(_OUTPUT_IMAGES_JS):
+            (nw, nh), (w, h) = image["natural"], image["shown"]
+            n += 1
+            if not (nw and w):
+                problems.append(f"{name}: {image['src']} not shown")
+            elif w > nw + 0.5 or abs(h / w - nh / nw) > 0.02:
+                problems.append(f"{name}: {image['src']} is {nw} x {nh} px, shown {w:.0f} x {h:.0f}")
+            elif image["href"] != image["src"]:
+                problems.append(f"{name}: {image['src']} links to {image['href']!r}")
+    assert not problems, "\n".join(problems[:20])
+    assert n >= len(LESSONS)

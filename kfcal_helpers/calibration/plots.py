@@ -133,11 +133,51 @@ def _bands_lines(ax, point, simul, lw=0.7, symmetric=True):
                 lines[0].set_label(label)
 
 
+_TOP_LEGEND_NCOL = "_kfcal_top_legend_ncol"  # attribute of an axes: the ncol its legend on top asks for
+_TOP_LEGEND_DATA = "_kfcal_top_legend_data"  # and its y limits before the room for the legend
+
+
 def _legend_on_top(ax, ncol=2):
-    """Room above the curves and bands for the legend, so it covers neither."""
+    """Room above the curves and bands for the legend, so it covers neither.  A first guess (45 %
+    more height); :func:`_fit_legends_on_top` fits the columns and the room once the figure is laid out."""
     lo, hi = ax.get_ylim()
+    setattr(ax, _TOP_LEGEND_NCOL, ncol)
+    setattr(ax, _TOP_LEGEND_DATA, (lo, hi))
     ax.set_ylim(lo, hi + 0.45 * (hi - lo))
-    ax.legend(ncol=ncol, fontsize="small", loc="upper center")
+    legend = ax.legend(ncol=ncol, fontsize="small", loc="upper center")
+    legend.set_in_layout(False)  # the layout makes room for the axes' texts; the legend sits inside
+
+
+def _fit_legends_on_top(fig, renderer) -> None:
+    """Each legend of :func:`_legend_on_top` in as many of its columns as fit the axes' width (one at
+    least), and the axes' top raised just enough that the legend sits above the data."""
+    for ax in fig.axes:
+        ncol = getattr(ax, _TOP_LEGEND_NCOL, None)
+        if ncol is None:
+            continue
+        lo, hi = getattr(ax, _TOP_LEGEND_DATA)
+        width = ax.get_window_extent(renderer).width
+        for n in range(ncol, 0, -1):
+            legend = ax.legend(ncol=n, fontsize="small", loc="upper center")
+            legend.set_in_layout(False)
+            box = legend.get_window_extent(renderer)
+            if box.width <= width:
+                break
+        # the legend's height and its padding to the axes' top, as a share of the axes' height
+        share = (ax.get_window_extent(renderer).y1 - box.y0) / ax.get_window_extent(renderer).height
+        ax.set_ylim(lo, lo + (hi - lo) / max(1.0 - share - 0.04, 0.3))
+
+
+def _layout(fig) -> None:
+    """``tight_layout``, with the legends on top fitted to the panels it gives (twice: fitting can
+    change the tick labels, and with them the layout)."""
+    fig.tight_layout()
+    get_renderer = getattr(fig.canvas, "get_renderer", None)
+    if get_renderer is None:  # a canvas that cannot measure text: keep the first guess
+        return
+    for _ in range(2):
+        _fit_legends_on_top(fig, get_renderer())
+        fig.tight_layout()
 
 
 def _normalized_band(ax, t, ratio, sim, title, ylabel, labels=None, lw=0.6):
@@ -195,7 +235,7 @@ def _panel_orthogonality(fig, ax, mc, checks):
     _ = ax.plot(t, max9 * np.ones_like(t), color="k", ls="--", lw=line_width(0.7), label="95 % band of the largest of 9")
     _ = ax.plot(t, sim * np.ones_like(t), color="k", ls="-", lw=line_width(0.7), label="simultaneous band (verdict)")
     ax.set_ylim(bottom=0)
-    ax.set_title("3. |(1/N) Σ (e_k − ē_k) x̂_m| / 1-entry half-width")
+    ax.set_title("3. |(1/N) Σ (e_k − ē_k) x̂_m|\n/ 1-entry half-width")
     ax.set_ylabel("normalized [-]")
     ax.set_xlabel("time t [s]")
     _legend_on_top(ax, ncol=2)
@@ -215,9 +255,10 @@ def _panel_residual_independence(fig, ax, mc, checks):
     image[fixes[m], fixes[i]] = worst
     cmap = mpl.colormaps["viridis"].with_extremes(over="red", bad="white")
     im = ax.imshow(image, vmin=0, vmax=1, cmap=cmap, extent=(0, t[-1], t[-1], 0))
+    ax.set_aspect("auto")  # the map fills its panel, so the colour bar stays within the panel's height
     cbar = fig.colorbar(im, ax=ax, extend="max", shrink=0.85)
-    cbar.set_label("max |ρ| / simult. band", fontsize="small")
-    ax.set_title("4a. residual correlations, pairs of fixes\n(largest of pp, pv, vp, vv; red: outside)")
+    cbar.set_label("max |ρ| / simult. band (red: outside)", fontsize="small")
+    ax.set_title("4a. residual correlation, fix pairs\n(largest of pp, pv, vp, vv)")
     ax.set_xlabel("fix time [s]")
     ax.set_ylabel("fix time [s]")
     ax.grid(False)
@@ -289,7 +330,7 @@ def plot_check_panels(mc: MonteCarloResult, panels=CHECK_PANELS, ncols: int = 2,
     for ax in axes.flat[len(panels):]:
         ax.set_visible(False)
     fig.suptitle(title or f"Monte Carlo checks, N = {mc.n_runs} realizations")
-    fig.tight_layout()
+    _layout(fig)
     return fig
 
 
