@@ -143,6 +143,18 @@ def test_the_demos_self_checks_are_not_graded(tmp_path):
     assert len(every) == 16 and not any(name.startswith(("17_", "18_")) for name in every)
 
 
+def test_a_misspelt_graded_flag_is_an_error_naming_the_file(tmp_path, one_lesson):
+    from kfcal_helpers.assignments import write_course
+
+    path = one_lesson / "source" / f"{LESSON}.md"
+    for flag in ("kfcal:\n  grade: false\n", "kfcal:\n  graded: no way\n"):
+        text = (NOTEBOOKS / "source" / f"{LESSON}.md").read_text(encoding="utf-8")
+        path.write_text(text.replace("---\n", "---\n" + flag, 1), encoding="utf-8")
+        with pytest.raises(ValueError, match=f"{LESSON}.md: the front matter's kfcal must be"):
+            write_course(tmp_path / "course", [path])
+    assert not (tmp_path / "course").exists()
+
+
 # ------------------------------------------------------------------------------------------------
 # the course made for real (nbgrader)
 # ------------------------------------------------------------------------------------------------

@@ -1,6 +1,7 @@
 """An nbgrader course made from the source notebooks.
 
-Each lesson with exercises becomes one assignment, named after the notebook's stem, whose source
+Each lesson with exercises becomes one assignment (unless its source says ``kfcal: {graded: false}``:
+:func:`graded`), named after the notebook's stem, whose source
 notebook is the lesson with every answer cell turned into two nbgrader cells:
 
 * an *autograded answer* cell: the answer cell's common and placeholder lines and its solution
@@ -199,8 +200,8 @@ def graded(nb) -> bool:
     does not say ``kfcal: {graded: false}`` (lessons whose exercises are self-checks, their answers in
     the text)."""
     meta = nb.get("metadata", {}).get("kfcal", {})
-    if not isinstance(meta, dict) or meta.get("graded", True) not in (True, False):
-        raise ValueError(f"metadata kfcal must be {{graded: false}} or absent, not {meta!r}")
+    if not isinstance(meta, dict) or set(meta) - {"graded"} or not isinstance(meta.get("graded", True), bool):
+        raise ValueError(f"the front matter's kfcal must be {{graded: false}} or absent, not {meta!r}")
     return meta.get("graded", True) and any(
         isinstance(c.get("metadata", {}).get("kfcal"), dict) and c.metadata["kfcal"].get("role") == "answer"
         for c in nb.cells)
