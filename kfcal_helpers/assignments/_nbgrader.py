@@ -183,7 +183,11 @@ def check_course_dir(course: Path, notebooks: Path | None = None) -> Path:
         if where == folder or where.is_relative_to(folder):
             raise ValueError(f"--course: {path_text(course)} is inside {path_text(folder)}: make the course in a "
                              f"folder of its own outside the repository (e.g. ~/kf-course)")
-    if where.is_dir() and any(where.iterdir()):
+    try:
+        holds = where.is_dir() and any(where.iterdir())
+    except OSError as exc:
+        raise ValueError(f"--course: {path_text(course)} cannot be read ({exc.strerror})") from None
+    if holds:
         config = where / "nbgrader_config.py"
         try:
             first = config.read_text(encoding="utf-8").split("\n", 1)[0]
