@@ -126,6 +126,21 @@ def test_course_over_other_files_is_refused(tmp_path, one_lesson):
     assert snapshot(folder) == before and not (folder / "release").exists()
 
 
+def test_course_folder_that_cannot_be_listed_is_one_line(tmp_path, one_lesson, monkeypatch):
+    folder = tmp_path / "locked"
+    folder.mkdir()
+    iterdir = Path.iterdir
+
+    def refuse(self):   # what a folder without read permission does (this test may run as root)
+        if self == folder:
+            raise PermissionError(13, "Permission denied", str(self))
+        return iterdir(self)
+
+    monkeypatch.setattr(Path, "iterdir", refuse)
+    line = one_error_line(cli("--notebooks", one_lesson, "--course", folder))
+    assert "--course" in line and "cannot be read (Permission denied)" in line
+
+
 # ------------------------------------------------------------------------------------------------
 # which lessons are graded (no nbgrader needed: write_course does not import it)
 # ------------------------------------------------------------------------------------------------
