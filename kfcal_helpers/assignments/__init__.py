@@ -73,7 +73,7 @@ region; markers may be indented inside a function; the last line is the check ca
 
 ``python -m kfcal_helpers assignments`` writes the lessons and solutions that differ from what their
 source renders (``--execute`` runs those whose code changed), ``--check`` lists them (exit 1), and
-``--course DIR`` makes an nbgrader course of every lesson with exercises (:mod:`._nbgrader`; needs
+``--course DIR`` makes an nbgrader course of every graded lesson with exercises (:mod:`._nbgrader`; needs
 ``environment-instructors.txt``).  Only the standard library, nbformat and myst-nb (its
 reader of the sources) are needed to render; nbclient to execute; nbgrader is imported only for
 ``--course``.

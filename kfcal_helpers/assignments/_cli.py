@@ -55,17 +55,17 @@ def _course_dir(value: str) -> Path:
 
 def run(args) -> int:
     """Run the sub-command; returns the exit code (``ValueError`` for bad input: exit 2)."""
-    from ._nbgrader import generate, nbgrader_missing, write_course
+    from ._nbgrader import check_course_dir, generate, nbgrader_missing, write_course
     from ._sync import differing, sources, sync, targets
 
     notebooks = _notebooks(args.notebooks)
     if args.course is not None:
         if args.execute:
             raise ValueError("--execute renders the notebooks: it does not go with --course")
+        course = check_course_dir(_course_dir(args.course), notebooks)
         missing = nbgrader_missing()
         if missing:
             raise ValueError(f"--course: {missing}")
-        course = _course_dir(args.course)
         names = write_course(course, sources(notebooks))
         generate(course, names, log=lambda line: print(line, flush=True))
         print(f"course {path_text(course)}: {len(names)} assignments released; graders run nbgrader there "

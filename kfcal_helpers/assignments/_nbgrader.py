@@ -1,6 +1,7 @@
 """An nbgrader course made from the source notebooks.
 
-Each lesson with exercises becomes one assignment, named after the notebook's stem, whose source
+Each lesson with exercises becomes one assignment (unless its source says ``kfcal: {graded: false}``:
+:func:`graded`), named after the notebook's stem, whose source
 notebook is the lesson with every answer cell turned into two nbgrader cells:
 
 * an *autograded answer* cell: the answer cell's common and placeholder lines and its solution
@@ -25,13 +26,14 @@ import copy
 import os
 import re
 import shutil
+import sys
 from pathlib import Path
 
 from ._source import BEGIN_SOLUTION, END_SOLUTION, parse_answer, read_source, validate
 from ._sync import located, write_notebook
 
 __all__ = ["COURSE_ID", "INSTRUCTORS_FILE", "SOLUTIONS_LINK", "check_modules", "nbgrader_notebook", "write_course",
-           "generate", "nbgrader_missing"]
+           "generate", "nbgrader_missing", "check_course_dir", "graded"]
 
 COURSE_ID = "kfcal"
 #: the pip requirements file that adds nbgrader to environment.txt
@@ -41,6 +43,8 @@ SOLUTIONS_LINK = re.compile(r"\s*Worked\s+solutions:\s*\[[^\]]*\]\([^)]*\)\.?")
 _PACKAGE = Path(__file__).resolve().parents[1]
 
 CONFIG = '''"""nbgrader configuration of the course made by python -m kfcal_helpers assignments --course."""
+
+import os
 
 os.environ.setdefault("KFCAL_QUIET", "1")   # no progress bars in the autograded notebooks
 
@@ -52,6 +56,9 @@ c.ClearSolutions.code_stub = {{"python": ""}}
 # some lessons run short Monte Carlo runs: allow a cell a few minutes
 c.Execute.timeout = 600
 '''
+#: the first line of the course's ``nbgrader_config.py``: a folder whose config starts with it is a course
+#: this command made (and may make again)
+CONFIG_FIRST_LINE = CONFIG.split("\n", 1)[0]
 
 
 def check_modules(package: Path = _PACKAGE) -> dict[str, str]:
@@ -154,10 +161,61 @@ def nbgrader_missing() -> str | None:
     return None
 
 
+def _repositories(notebooks: Path | None) -> list[Path]:
+    """The folders a course must stay out of: the notebooks folder, and the repository holding it or this
+    package (a folder with ``pyproject.toml`` or ``.git``)."""
+    notebooks = [] if notebooks is None else [Path(notebooks).resolve()]
+    candidates = [_PACKAGE.parent, *(folder.parent for folder in notebooks)]
+    return [folder for folder in candidates
+            if (folder / "pyproject.toml").exists() or (folder / ".git").exists()] + notebooks
+
+
+def check_course_dir(course: Path, notebooks: Path | None = None) -> Path:
+    """``course`` if a course may be written there, else ``ValueError`` (one line, naming ``--course``):
+    a folder inside the repository (or the notebooks folder ``notebooks``) is refused, and so is a folder
+    that holds anything and is not a course made here before (its ``nbgrader_config.py`` starts with
+    :data:`CONFIG_FIRST_LINE`).  A course made before keeps all its files when it is made again."""
+    from ..output import path_text
+
+    course = Path(course)
+    where = course.resolve()
+    for folder in _repositories(notebooks):
+        if where == folder or where.is_relative_to(folder):
+            raise ValueError(f"--course: {path_text(course)} is inside {path_text(folder)}: make the course in a "
+                             f"folder of its own outside the repository (e.g. ~/kf-course)")
+    try:
+        holds = where.is_dir() and any(where.iterdir())
+    except OSError as exc:
+        raise ValueError(f"--course: {path_text(course)} cannot be read ({exc.strerror})") from None
+    if holds:
+        config = where / "nbgrader_config.py"
+        try:
+            first = config.read_text(encoding="utf-8").split("\n", 1)[0]
+        except (OSError, UnicodeDecodeError):
+            first = None
+        if first != CONFIG_FIRST_LINE:
+            raise ValueError(f"--course: {path_text(course)} holds files and is not a course made by this command: "
+                             f"name a new or empty folder")
+    return course
+
+
+def graded(nb) -> bool:
+    """Whether the source notebook ``nb`` has a graded assignment: it has an answer cell and its metadata
+    does not say ``kfcal: {graded: false}`` (lessons whose exercises are self-checks, their answers in
+    the text)."""
+    meta = nb.get("metadata", {}).get("kfcal", {})
+    if not isinstance(meta, dict) or set(meta) - {"graded"} or not isinstance(meta.get("graded", True), bool):
+        raise ValueError(f"the front matter's kfcal must be {{graded: false}} or absent, not {meta!r}")
+    return meta.get("graded", True) and any(
+        isinstance(c.get("metadata", {}).get("kfcal"), dict) and c.metadata["kfcal"].get("role") == "answer"
+        for c in nb.cells)
+
+
 def write_course(course: Path, sources: list[Path]) -> list[str]:
     """Write ``course/nbgrader_config.py`` and ``course/source/<stem>/<stem>.ipynb`` for every source
-    (``notebooks/source/NN_name.md``) with an answer cell; returns the assignment names.  A source
-    notebook already in the course is replaced; nothing else there is touched.  The cells keep the ids
+    (``notebooks/source/NN_name.md``) that is :func:`graded`; returns the assignment names.  A source
+    notebook already in the course is replaced; nothing else there is touched (hand-ins, autograded
+    notebooks, feedback and the gradebook stay).  The cells keep the ids
     :func:`._source.read_source` gives them (made from their text), so the same sources make the same
     course."""
     course = Path(course)
@@ -166,10 +224,9 @@ def write_course(course: Path, sources: list[Path]) -> list[str]:
     made = []
     for path in sources:
         nb, lines = read_source(path, with_lines=True)
-        if not any(isinstance(c.get("metadata", {}).get("kfcal"), dict) and c.metadata["kfcal"].get("role") == "answer"
-                   for c in nb.cells):
-            continue
         try:
+            if not graded(nb):
+                continue
             made.append((path.stem, nbgrader_notebook(nb, modules)))
         except ValueError as exc:
             raise ValueError(located(path, lines, exc)) from None
@@ -188,22 +245,53 @@ def write_course(course: Path, sources: list[Path]) -> list[str]:
 
 def generate(course: Path, names: list[str], log=print) -> None:
     """Run nbgrader's ``generate_assignment`` for each assignment in ``names`` (into ``course/release/``),
-    adding it to the course's gradebook.  Needs nbgrader (:func:`nbgrader_missing`)."""
+    adding it to the course's gradebook, with the course's own ``nbgrader_config.py`` (the settings the
+    graders' ``nbgrader`` commands read).  nbgrader starts its ``alembic`` command by name to make the
+    gradebook: the running interpreter's scripts folder goes first on the PATH while it runs, so that an
+    environment that is not activated works too.  Needs nbgrader (:func:`nbgrader_missing`)."""
+    import sysconfig
+
     from nbgrader.apps import NbGraderAPI
-    from traitlets.config import Config
+    from traitlets.config.loader import ConfigFileNotFound, PyFileConfigLoader
+
+    from ..output import path_text
 
     course = Path(course).resolve()
-    config = Config()
+    quiet = os.environ.get("KFCAL_QUIET")   # the file sets it for nbgrader's own processes, not for this one
+    try:
+        config = PyFileConfigLoader("nbgrader_config.py", path=str(course)).load_config()
+    except ConfigFileNotFound:
+        raise ValueError(f"{path_text(course)} has no nbgrader_config.py (write_course writes it)") from None
+    except Exception as exc:   # the file is Python: any error it raises
+        raise ValueError(f"{path_text(course / 'nbgrader_config.py')} does not load: "
+                         f"{type(exc).__name__}: {' '.join(str(exc).split())}") from None
+    finally:
+        if quiet is None:
+            os.environ.pop("KFCAL_QUIET", None)
+        else:
+            os.environ["KFCAL_QUIET"] = quiet
     config.CourseDirectory.root = str(course)
     config.CourseDirectory.course_id = COURSE_ID
-    config.ClearSolutions.code_stub = {"python": ""}
-    api = NbGraderAPI(config=config)
-    for name in names:
-        release = course / "release" / name
-        if release.exists():
-            shutil.rmtree(release)
-        result = api.generate_assignment(name, force=True, create=True)
-        if not result.get("success"):
-            error = " ".join(str(result.get("error") or result.get("log") or "unknown error").split())
-            raise ValueError(f"nbgrader generate_assignment {name} failed: {error[-300:]}")
-        log(f"released {name}")
+    scripts = [sysconfig.get_path("scripts"), os.path.dirname(sys.executable)]
+    path = os.pathsep.join(dict.fromkeys([*scripts, os.environ.get("PATH", "")]))
+    if not (course / "gradebook.db").exists() and shutil.which("alembic", path=path) is None:
+        raise ValueError(f"nbgrader's alembic command is not in {path_text(Path(scripts[0]))}: "
+                         f"pip install -r {INSTRUCTORS_FILE} into the environment that runs this command")
+    old_path = os.environ.get("PATH")
+    os.environ["PATH"] = path
+    try:
+        api = NbGraderAPI(config=config)
+        for name in names:
+            release = course / "release" / name
+            if release.exists():
+                shutil.rmtree(release)
+            result = api.generate_assignment(name, force=True, create=True)
+            if not result.get("success"):
+                error = " ".join(str(result.get("error") or result.get("log") or "unknown error").split())
+                raise ValueError(f"nbgrader generate_assignment {name} failed: {error[-300:]}")
+            log(f"released {name}")
+    finally:
+        if old_path is None:
+            os.environ.pop("PATH", None)
+        else:
+            os.environ["PATH"] = old_path
