@@ -279,3 +279,30 @@ def test_a_signal_while_a_notebook_runs_is_one_line_and_the_kernel_ends(signame,
         time.sleep(0.1)
     assert not _alive(kernel), "the kernel outlived the command"
     assert written(nb) == []
+
+
+@linux_only
+@pytest.mark.parametrize("last", ["y = 2", "1 / 0"], ids=["runs", "raises"])
+def test_execute_ends_its_kernel_however_the_run_ends(last, tmp_path):
+    """``execute`` shuts its kernel down when the run ends (it was left running until the process exited),
+    and a cell that raises is a one-line ``ValueError`` naming the notebook, the cell and where it comes from."""
+    import nbformat
+
+    from kfcal_helpers.assignments import execute
+
+    nb = nbformat.v4.new_notebook()
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nb.cells += [nbformat.v4.new_code_cell("import os\nopen('pid', 'w').write(str(os.getpid()))"),
+                 nbformat.v4.new_code_cell(last)]
+    if last == "y = 2":
+        execute(nb, tmp_path / "x.ipynb", timeout=120)
+        assert nb.cells[1].execution_count == 2
+    else:
+        with pytest.raises(ValueError) as info:
+            execute(nb, tmp_path / "x.ipynb", timeout=120, where=["s.md, line 3", "s.md, line 7"])
+        assert str(info.value) == "x.ipynb, cell 1 (s.md, line 7) raised ZeroDivisionError: division by zero"
+    kernel = int((tmp_path / "pid").read_text())
+    deadline = time.monotonic() + 10
+    while _alive(kernel) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _alive(kernel), "the kernel outlived the run"

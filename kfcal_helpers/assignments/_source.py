@@ -47,7 +47,7 @@ from pathlib import Path
 from ..files import read_regular
 
 __all__ = ["ROLES", "MARKERS", "AnswerCell", "parse_answer", "render", "render_lesson", "render_solutions",
-           "answer_cells", "validate", "read_source", "SOURCE_SUFFIX", "MAX_SOURCE_BYTES", "MAX_METADATA_BYTES",
+           "answer_cells", "validate", "read_source", "source_indices", "SOURCE_SUFFIX", "MAX_SOURCE_BYTES", "MAX_METADATA_BYTES",
            "MAX_METADATA_DEPTH"]
 
 #: the file suffix of a source notebook (``notebooks/source/NN_name.md``)
@@ -194,24 +194,35 @@ def answer_cells(nb) -> list[tuple[int, AnswerCell]]:
     return [(i, parse_answer(i, c)) for i, c in enumerate(nb["cells"]) if _role(i, c)[0] == "answer"]
 
 
-def render(nb, which: str):
-    """The ``"lesson"`` or ``"solutions"`` notebook of the source ``nb`` (a new notebook; cells unexecuted)."""
+def _rendered(nb, which: str) -> list[tuple[int, dict]]:
+    """``[(source index, cell)]`` of the ``which`` notebook of the source ``nb``, in order."""
     if which not in ("lesson", "solutions"):
         raise ValueError(f"which must be 'lesson' or 'solutions', not {which!r}")
     validate(nb)
-    out = copy.deepcopy(nb)
-    out["metadata"].pop("kfcal", None)
     cells = []
     for index, cell in enumerate(nb["cells"]):
         role, _ = _role(index, cell)
         if role == "answer":
             answer = parse_answer(index, cell)
             text = answer.lesson_source() if which == "lesson" else answer.solution_source()
-            cells.append(_copy_cell(cell, text))
+            cells.append((index, _copy_cell(cell, text)))
         elif role == "exercise" or (role is None) == (which == "lesson"):
-            cells.append(_copy_cell(cell, cell["source"]))
-    out["cells"] = cells
+            cells.append((index, _copy_cell(cell, cell["source"])))
+    return cells
+
+
+def render(nb, which: str):
+    """The ``"lesson"`` or ``"solutions"`` notebook of the source ``nb`` (a new notebook; cells unexecuted)."""
+    cells = _rendered(nb, which)
+    out = copy.deepcopy(nb)
+    out["metadata"].pop("kfcal", None)
+    out["cells"] = [cell for _, cell in cells]
     return out
+
+
+def source_indices(nb, which: str) -> list[int]:
+    """The index of the source cell each cell of the ``which`` notebook of the source ``nb`` comes from."""
+    return [index for index, _ in _rendered(nb, which)]
 
 
 def render_lesson(nb):
