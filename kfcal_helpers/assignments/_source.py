@@ -27,7 +27,8 @@ blank lines around it (myst-nb's reading, used as it is).
 
 What the reader accepts (anything else is a ``ValueError`` naming the file, and the line where it can):
 a regular file (links resolved; no FIFO, device or directory) of at most :data:`MAX_SOURCE_BYTES`,
-checked before reading (:func:`kfcal_helpers.files.read_regular`), in UTF-8, not empty; no ``:load:``
+checked before reading (:func:`kfcal_helpers.files.read_regular`), in UTF-8, not empty, of at most
+:data:`MAX_CELLS` cells (counted before it is parsed); no ``:load:``
 option (a cell's code is written in the cell); YAML metadata blocks (the front matter, a code cell's
 options) of at most :data:`MAX_METADATA_BYTES` each, without anchors or aliases (``&name``, ``*name``:
 a few hundred bytes of them expand to gigabytes); and metadata that is JSON (string keys; strings,
@@ -47,13 +48,17 @@ from pathlib import Path
 from ..files import read_regular
 
 __all__ = ["ROLES", "MARKERS", "AnswerCell", "parse_answer", "render", "render_lesson", "render_solutions",
-           "answer_cells", "validate", "read_source", "source_indices", "SOURCE_SUFFIX", "MAX_SOURCE_BYTES", "MAX_METADATA_BYTES",
-           "MAX_METADATA_DEPTH"]
+           "answer_cells", "validate", "read_source", "source_indices", "SOURCE_SUFFIX", "MAX_SOURCE_BYTES",
+           "MAX_CELLS", "MAX_METADATA_BYTES", "MAX_METADATA_DEPTH"]
 
 #: the file suffix of a source notebook (``notebooks/source/NN_name.md``)
 SOURCE_SUFFIX = ".md"
-#: the largest source notebook read, bytes (the largest lesson is about 50 kB)
-MAX_SOURCE_BYTES = 1_000_000
+#: the largest source notebook read, bytes (the largest lesson has 49 kB; a source of this many short
+#: paragraphs, the most markdown-it tokens, renders within the command line's 500 MB)
+MAX_SOURCE_BYTES = 262_144
+#: the most cells a source notebook may have (cell markers: code and raw fences, ``+++`` lines; the lessons
+#: have at most 40)
+MAX_CELLS = 1000
 #: the largest YAML metadata block (the front matter, a code cell's options), bytes (the lessons' are < 1 kB)
 MAX_METADATA_BYTES = 65_536
 #: how deep metadata may nest (mappings and lists)
@@ -67,6 +72,8 @@ BEGIN_SOLUTION, END_SOLUTION = "### BEGIN SOLUTION", "### END SOLUTION"
 MARKERS = (BEGIN_PLACEHOLDER, END_PLACEHOLDER, BEGIN_SOLUTION, END_SOLUTION)
 _CHECK_CALL = re.compile(r"^(check_\w+)\(([A-Za-z_]\w*)\)\s*$")
 _EXERCISE_ID = re.compile(r"^\d\d[a-z]?\.\d+$")
+#: a line that starts a cell (a superset of what myst-nb's reader takes: counted before it parses)
+_CELL_MARKER = re.compile(r"^ {0,3}(?:(?:`{3,}|~{3,})\s*\{(?:code|raw)-cell\}|\+\+\+)", re.MULTILINE)
 
 
 class AnswerCell:
@@ -292,12 +299,13 @@ def _check_yaml(name: str, text: str) -> None:
     for line, block, cell in _yaml_blocks(text):
         if len(block.encode("utf-8")) > MAX_METADATA_BYTES:
             raise ValueError(f"{name}, line {line}: a metadata block of more than {MAX_METADATA_BYTES // 1024} kB")
+        loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)   # libyaml's when there: 50 times faster
         try:
-            for token in yaml.scan(block):
+            for token in yaml.scan(block, Loader=loader):
                 if isinstance(token, (yaml.AnchorToken, yaml.AliasToken)):
                     raise ValueError(f"{name}, line {line + token.start_mark.line}: YAML anchors and aliases "
                                      f"(&name, *name) are not allowed in a source's metadata: write the value out")
-            options = yaml.safe_load(block) if cell else None
+            options = yaml.load(block, Loader=loader) if cell and "load" in block else None
         except (yaml.YAMLError, RecursionError):
             continue  # myst-nb's reader reports it
         if isinstance(options, dict) and "load" in options:
@@ -342,8 +350,8 @@ def read_source(path, *, with_lines: bool = False):
                          f"pip install -r environment.txt") from None
     data = read_regular(path, MAX_SOURCE_BYTES, argname=None,
                         regular_only="a source notebook is read from regular files only",
-                        too_large=f"{path}: larger than the {MAX_SOURCE_BYTES / 1e6:.0f} MB a source notebook "
-                                  f"may have (the largest lesson has 0.05 MB)")
+                        too_large=f"{path}: larger than the {MAX_SOURCE_BYTES // 1024} kB a source notebook "
+                                  f"may have (the largest lesson has 49 kB)")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -351,6 +359,10 @@ def read_source(path, *, with_lines: bool = False):
     del data
     if not text.strip():
         raise ValueError(f"{path.name}: the source notebook is empty")
+    markers = sum(1 for _ in _CELL_MARKER.finditer(text))
+    if markers > MAX_CELLS:
+        raise ValueError(f"{path.name}: {markers} cells, more than the {MAX_CELLS} a source notebook may have "
+                         f"(the lessons have at most 40)")
     try:
         _check_yaml(path.name, text)
         # no path: myst-nb's reader then refuses :load: (which would read any file) instead of reading it
