@@ -8,7 +8,8 @@ numpy, matplotlib or argparse is imported, so a Ctrl-C during the imports is han
 imports only the standard library's always-loaded modules (``os``, ``sys``, ``signal``, ``codecs``).
 
 * Signals: SIGINT (Ctrl-C) and SIGTERM print one line on stderr (on its own line, after a progress
-  bar), remove the temporary files being written (:data:`PARTIAL_FILES`) and end the process at once
+  bar), remove the temporary files being written (:data:`PARTIAL_FILES`), end what :data:`AT_SIGNAL`
+  holds (a Jupyter kernel being run) and end the process at once
   with status 130 (SIGINT) or 143 (SIGTERM): an exception raised inside a library callback could
   be swallowed ("Exception ignored in ...") and the work go on, and the Monte Carlo's worker threads
   end with the process.  A handler is installed only where the default one is in place (not in a
@@ -34,7 +35,7 @@ import os
 import signal
 import sys
 
-__all__ = ["PROG", "EXIT_INTERRUPTED", "EXIT_TERMINATED", "PARTIAL_FILES", "OPEN_BARS", "FALLBACK_ERRORS",
+__all__ = ["PROG", "EXIT_INTERRUPTED", "EXIT_TERMINATED", "PARTIAL_FILES", "AT_SIGNAL", "OPEN_BARS", "FALLBACK_ERRORS",
            "ASCII_FALLBACKS", "command_name", "install_signal_handlers", "restore_signal_handlers",
            "remove_partial_files", "standard_streams", "use_fallback_errors", "use_writable_matplotlib_config",
            "prepare"]
@@ -45,6 +46,9 @@ EXIT_TERMINATED = 143  #: SIGTERM (128 + 15)
 
 #: temporary files being written (see kfcal_helpers.slides.save_atomic), removed by the signal handler
 PARTIAL_FILES: set = set()
+#: callables (no arguments) the signal handler calls before the process ends, such as ending a Jupyter kernel
+#: this process started (see kfcal_helpers.assignments.execute); their errors are ignored
+AT_SIGNAL: list = []
 #: progress bars made (tqdm objects; one whose ``disable`` is true is closed), see kfcal_helpers.progress
 OPEN_BARS: list = []
 #: directories this process created for itself (a last-resort matplotlib config dir), removed at exit
@@ -107,6 +111,11 @@ def _on_signal(signum, frame):
             code, word = c, w
     _write_stderr(("\n" if _bar_on_screen() else "") + f"{_STATE['command']}: {word}\n")
     remove_partial_files()
+    for call in list(AT_SIGNAL):
+        try:
+            call()
+        except Exception:
+            pass
     _remove_own_dirs()
     os._exit(code)
 

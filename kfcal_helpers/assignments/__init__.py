@@ -81,12 +81,14 @@ reader of the sources) are needed to render; nbclient to execute; nbgrader is im
 
 from ._cli import add_parser
 from ._nbgrader import COURSE_ID, INSTRUCTORS_FILE, check_modules, generate, nbgrader_notebook, write_course
-from ._source import (MARKERS, ROLES, SOURCE_SUFFIX, AnswerCell, answer_cells, parse_answer, read_source, render,
+from ._source import (MARKERS, MAX_CELLS, MAX_METADATA_BYTES, MAX_METADATA_DEPTH, MAX_SOURCE_BYTES, ROLES,
+                      SOURCE_SUFFIX, AnswerCell, answer_cells, parse_answer, read_source, render,
                       render_lesson, render_solutions, validate)
 from ._sync import (COURSE_LOG_LESSONS, NOTEBOOKS, Target, comparable, differing, equal, execute, merge, render_source,
                     sources, sync, targets, write_notebook)
 
-__all__ = ["ROLES", "MARKERS", "SOURCE_SUFFIX", "AnswerCell", "read_source", "parse_answer", "validate",
+__all__ = ["ROLES", "MARKERS", "SOURCE_SUFFIX", "MAX_SOURCE_BYTES", "MAX_CELLS", "MAX_METADATA_BYTES", "MAX_METADATA_DEPTH",
+           "AnswerCell", "read_source", "parse_answer", "validate",
            "answer_cells", "render", "render_lesson", "render_solutions", "NOTEBOOKS", "COURSE_LOG_LESSONS", "Target",
            "sources", "targets", "render_source", "comparable", "equal",
            "differing", "merge", "sync", "execute", "COURSE_ID", "INSTRUCTORS_FILE", "check_modules",

@@ -42,6 +42,8 @@ def _notebooks(value) -> Path:
 
 
 def _course_dir(value: str) -> Path:
+    if not value.strip():
+        raise ValueError("--course: the folder name is empty (give a folder, e.g. --course course)")
     path = Path(value)
     if path.exists() and not path.is_dir():
         raise ValueError(f"--course: {path_text(path)} exists and is not a folder")

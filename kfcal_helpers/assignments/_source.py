@@ -24,20 +24,45 @@ by ``metadata["kfcal"]``:
 Everything else of a cell (type, source, other metadata, id) is copied; the source holds no outputs
 (a text source has none).  A cell's text is what stands between its marker and the next one, without the
 blank lines around it (myst-nb's reading, used as it is).
+
+What the reader accepts (anything else is a ``ValueError`` naming the file, and the line where it can):
+a regular file (links resolved; no FIFO, device or directory) of at most :data:`MAX_SOURCE_BYTES`,
+checked before reading (:func:`kfcal_helpers.files.read_regular`), in UTF-8, not empty, of at most
+:data:`MAX_CELLS` cells (counted before it is parsed); no ``:load:``
+option (a cell's code is written in the cell); YAML metadata blocks (the front matter, a code cell's
+options) of at most :data:`MAX_METADATA_BYTES` each, without anchors or aliases (``&name``, ``*name``:
+a few hundred bytes of them expand to gigabytes); and metadata that is JSON (string keys; strings,
+finite numbers, booleans, null, lists and mappings, nested at most :data:`MAX_METADATA_DEPTH` deep),
+since it is written to ``.ipynb`` files: a YAML date, set or binary is refused, not written.
 """
 
 from __future__ import annotations
 
 import copy
 import hashlib
+import math
 import re
+import textwrap
 from pathlib import Path
 
+from ..files import read_regular
+
 __all__ = ["ROLES", "MARKERS", "AnswerCell", "parse_answer", "render", "render_lesson", "render_solutions",
-           "answer_cells", "validate", "read_source", "SOURCE_SUFFIX"]
+           "answer_cells", "validate", "read_source", "source_indices", "SOURCE_SUFFIX", "MAX_SOURCE_BYTES",
+           "MAX_CELLS", "MAX_METADATA_BYTES", "MAX_METADATA_DEPTH"]
 
 #: the file suffix of a source notebook (``notebooks/source/NN_name.md``)
 SOURCE_SUFFIX = ".md"
+#: the largest source notebook read, bytes (the largest lesson has 49 kB; a source of this many short
+#: paragraphs, the most markdown-it tokens, renders within the command line's 500 MB)
+MAX_SOURCE_BYTES = 262_144
+#: the most cells a source notebook may have (cell markers: code and raw fences, ``+++`` lines; the lessons
+#: have at most 40)
+MAX_CELLS = 1000
+#: the largest YAML metadata block (the front matter, a code cell's options), bytes (the lessons' are < 1 kB)
+MAX_METADATA_BYTES = 65_536
+#: how deep metadata may nest (mappings and lists)
+MAX_METADATA_DEPTH = 50
 
 #: the roles a source cell may have (None: a lesson cell)
 ROLES = (None, "exercise", "solution", "answer")
@@ -47,6 +72,8 @@ BEGIN_SOLUTION, END_SOLUTION = "### BEGIN SOLUTION", "### END SOLUTION"
 MARKERS = (BEGIN_PLACEHOLDER, END_PLACEHOLDER, BEGIN_SOLUTION, END_SOLUTION)
 _CHECK_CALL = re.compile(r"^(check_\w+)\(([A-Za-z_]\w*)\)\s*$")
 _EXERCISE_ID = re.compile(r"^\d\d[a-z]?\.\d+$")
+#: a line that starts a cell (a superset of what myst-nb's reader takes: counted before it parses)
+_CELL_MARKER = re.compile(r"^ {0,3}(?:(?:`{3,}|~{3,})\s*\{(?:code|raw)-cell\}|\+\+\+)", re.MULTILINE)
 
 
 class AnswerCell:
@@ -99,8 +126,9 @@ def parse_answer(index: int, cell) -> AnswerCell:
     if not isinstance(exercise, str) or not _EXERCISE_ID.match(exercise):
         raise ValueError(f"{where}: metadata kfcal.exercise must be an exercise id such as '03.2', not {exercise!r}")
     points = meta.get("points", 1)
-    if isinstance(points, bool) or not isinstance(points, (int, float)) or not points > 0:
-        raise ValueError(f"{where}: metadata kfcal.points must be a positive number, not {points!r}")
+    if isinstance(points, bool) or not isinstance(points, (int, float)) or not points > 0 \
+            or not math.isfinite(points):
+        raise ValueError(f"{where}: metadata kfcal.points must be a positive finite number, not {points!r}")
     lines, region, last_closed = [], None, None
     for number, text in enumerate(cell["source"].split("\n"), start=1):
         marker = text.strip()
@@ -173,24 +201,35 @@ def answer_cells(nb) -> list[tuple[int, AnswerCell]]:
     return [(i, parse_answer(i, c)) for i, c in enumerate(nb["cells"]) if _role(i, c)[0] == "answer"]
 
 
-def render(nb, which: str):
-    """The ``"lesson"`` or ``"solutions"`` notebook of the source ``nb`` (a new notebook; cells unexecuted)."""
+def _rendered(nb, which: str) -> list[tuple[int, dict]]:
+    """``[(source index, cell)]`` of the ``which`` notebook of the source ``nb``, in order."""
     if which not in ("lesson", "solutions"):
         raise ValueError(f"which must be 'lesson' or 'solutions', not {which!r}")
     validate(nb)
-    out = copy.deepcopy(nb)
-    out["metadata"].pop("kfcal", None)
     cells = []
     for index, cell in enumerate(nb["cells"]):
         role, _ = _role(index, cell)
         if role == "answer":
             answer = parse_answer(index, cell)
             text = answer.lesson_source() if which == "lesson" else answer.solution_source()
-            cells.append(_copy_cell(cell, text))
+            cells.append((index, _copy_cell(cell, text)))
         elif role == "exercise" or (role is None) == (which == "lesson"):
-            cells.append(_copy_cell(cell, cell["source"]))
-    out["cells"] = cells
+            cells.append((index, _copy_cell(cell, cell["source"])))
+    return cells
+
+
+def render(nb, which: str):
+    """The ``"lesson"`` or ``"solutions"`` notebook of the source ``nb`` (a new notebook; cells unexecuted)."""
+    cells = _rendered(nb, which)
+    out = copy.deepcopy(nb)
+    out["metadata"].pop("kfcal", None)
+    out["cells"] = [cell for _, cell in cells]
     return out
+
+
+def source_indices(nb, which: str) -> list[int]:
+    """The index of the source cell each cell of the ``which`` notebook of the source ``nb`` comes from."""
+    return [index for index, _ in _rendered(nb, which)]
 
 
 def render_lesson(nb):
@@ -217,33 +256,136 @@ def _cell_ids(nb) -> None:
         cell["id"] = cell_id
 
 
+def _yaml_blocks(text: str) -> list[tuple[int, str, bool]]:
+    """``[(line, yaml, is_cell_options)]``: the YAML blocks myst-nb's reader loads from the source ``text``
+    (the front matter, each top-level code or raw cell's options block, ``---`` fenced or ``:key:`` lines),
+    found as that reader finds them; ``line`` (from 1) is the block's first line in the file."""
+    import dataclasses
+
+    from markdown_it.renderer import RendererHTML
+    from myst_parser.config.main import MdParserConfig
+    from myst_parser.parsers.mdit import create_md_parser
+
+    config = MdParserConfig()
+    config = dataclasses.replace(config, disable_syntax=[*config.disable_syntax, "inline"])
+    tokens = create_md_parser(config, RendererHTML).parse(text + "\n")
+    blocks, nesting = [], 0
+    for k, token in enumerate(tokens):
+        nesting += token.nesting
+        start = token.map[0] if token.map else 0
+        if k == 0 and token.type == "front_matter":
+            blocks.append((start + 2, token.content, False))
+        elif nesting == 0 and token.type == "fence" and token.info.startswith(("{code-cell}", "{raw-cell}")):
+            lines = token.content.splitlines()
+            if token.content.startswith("---"):
+                end = next((j for j in range(1, len(lines)) if lines[j].startswith("---")), len(lines))
+                blocks.append((start + 3, textwrap.dedent("\n".join(lines[1:end])), True))
+            elif token.content.lstrip().startswith(":"):
+                options = []
+                for line in lines:
+                    stripped = line.lstrip()
+                    if not stripped.startswith(":") or stripped.startswith(":::"):
+                        break
+                    options.append(stripped[1:])
+                blocks.append((start + 2, "\n".join(options), True))
+    return blocks
+
+
+def _check_yaml(name: str, text: str) -> None:
+    """Refuse, before myst-nb loads them, the YAML blocks of the source ``text`` (of file ``name``) that are
+    too large, hold an anchor or an alias, or give a cell the ``:load:`` option."""
+    import yaml
+
+    for line, block, cell in _yaml_blocks(text):
+        if len(block.encode("utf-8")) > MAX_METADATA_BYTES:
+            raise ValueError(f"{name}, line {line}: a metadata block of more than {MAX_METADATA_BYTES // 1024} kB")
+        loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)   # libyaml's when there: 50 times faster
+        try:
+            for token in yaml.scan(block, Loader=loader):
+                if isinstance(token, (yaml.AnchorToken, yaml.AliasToken)):
+                    raise ValueError(f"{name}, line {line + token.start_mark.line}: YAML anchors and aliases "
+                                     f"(&name, *name) are not allowed in a source's metadata: write the value out")
+            options = yaml.load(block, Loader=loader) if cell and "load" in block else None
+        except (yaml.YAMLError, RecursionError):
+            continue  # myst-nb's reader reports it
+        if isinstance(options, dict) and "load" in options:
+            raise ValueError(f"{name}, line {line}: a source notebook takes no :load: option (write the code "
+                             f"into the cell)")
+
+
+def _not_json(value, where: str) -> str | None:
+    """What in ``value`` (metadata, at ``where``) is not JSON, or None."""
+    stack = [(value, where, 0)]
+    while stack:
+        item, at, depth = stack.pop()
+        if depth > MAX_METADATA_DEPTH:
+            return f"{at} nests more than {MAX_METADATA_DEPTH} levels deep"
+        if isinstance(item, dict):
+            for key, sub in item.items():
+                if not isinstance(key, str):
+                    return (f"{at} has the key {repr(key)[:40]}, a {type(key).__name__}: a key must be a "
+                            f"string (JSON)")
+                stack.append((sub, f"{at}.{key[:40]}", depth + 1))
+        elif isinstance(item, list):
+            stack.extend((sub, f"{at}[{i}]", depth + 1) for i, sub in enumerate(item))
+        elif isinstance(item, float) and not math.isfinite(item):
+            return f"{at} is {item}, not a finite number (JSON)"
+        elif not (item is None or isinstance(item, (str, int, float))):
+            return f"{at} is a {type(item).__name__} ({repr(item)[:40]}), not a JSON value (quote it as a string)"
+    return None
+
+
 def read_source(path, *, with_lines: bool = False):
     """The source notebook at ``path`` (``NN_name.md``, a MyST Markdown notebook), read by myst-nb's
     reader, as an nbformat notebook (version 4.5) whose cells have ids made from their text.  With
     ``with_lines``, ``(notebook, lines)``: the line of the file (from 1) where each cell's marker is.
-    ``ValueError`` naming the file (and the cell and line) when it cannot be read."""
+    ``ValueError`` naming the file (and the cell and line) when it cannot be read or breaks a rule of
+    the module docstring (a FIFO, a file over :data:`MAX_SOURCE_BYTES`, ``:load:``, a YAML alias,
+    metadata that is not JSON)."""
     path = Path(path)
     try:
         from myst_nb.core.read import read_myst_markdown_notebook
     except ImportError:
         raise ValueError(f"{path.name}: reading a source notebook needs myst-nb: "
                          f"pip install -r environment.txt") from None
+    data = read_regular(path, MAX_SOURCE_BYTES, argname=None,
+                        regular_only="a source notebook is read from regular files only",
+                        too_large=f"{path}: larger than the {MAX_SOURCE_BYTES // 1024} kB a source notebook "
+                                  f"may have (the largest lesson has 49 kB)")
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path.name}: cannot be read ({exc})") from None
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path.name}: cannot be read (not UTF-8 text: byte {exc.start})") from None
+    del data
+    if not text.strip():
+        raise ValueError(f"{path.name}: the source notebook is empty")
+    markers = sum(1 for _ in _CELL_MARKER.finditer(text))
+    if markers > MAX_CELLS:
+        raise ValueError(f"{path.name}: {markers} cells, more than the {MAX_CELLS} a source notebook may have "
+                         f"(the lessons have at most 40)")
     try:
-        nb = read_myst_markdown_notebook(text, add_source_map=True, path=path)
-    except Exception as exc:   # MystMetadataParsingError, a YAML error of the front matter, a bad :load:
-        raise ValueError(f"{path.name}: {' '.join(str(exc).split())}") from None
+        _check_yaml(path.name, text)
+        # no path: myst-nb's reader then refuses :load: (which would read any file) instead of reading it
+        nb = read_myst_markdown_notebook(text, add_source_map=True, path=None)
+    except ValueError:
+        raise
+    except Exception as exc:   # MystMetadataParsingError, a YAML error of the front matter, a deep nesting
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise ValueError(f"{path.name}: {reason}") from None
     starts = nb.metadata.pop("source_map")
     if not isinstance(nb.metadata, dict) or any(not isinstance(c.metadata, dict) for c in nb.cells):
         raise ValueError(f"{path.name}: metadata must be mappings")
+    lines = text.splitlines()
+    cell_lines = [start if c.cell_type == "code"   # the fence's line
+                  else next((j for j in range(start, len(lines)) if lines[j].strip()), start) + 1   # its first line
+                  for start, c in zip(starts, nb.cells)]
+    problem = _not_json(nb.metadata, "the front matter")
+    if problem is not None:
+        raise ValueError(f"{path.name}, line 1: {problem}")
+    for index, (line, cell) in enumerate(zip(cell_lines, nb.cells)):
+        problem = _not_json(cell.metadata, f"source cell {index}: metadata")
+        if problem is not None:
+            raise ValueError(f"{path.name}, line {line}: {problem}")
     nb.nbformat, nb.nbformat_minor = 4, 5
     _cell_ids(nb)
-    if with_lines:
-        lines = text.splitlines()
-        return nb, [start if c.cell_type == "code"   # the fence's line
-                    else next((j for j in range(start, len(lines)) if lines[j].strip()), start) + 1   # its first line
-                    for start, c in zip(starts, nb.cells)]
-    return nb
+    return (nb, cell_lines) if with_lines else nb

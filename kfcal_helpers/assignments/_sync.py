@@ -17,7 +17,8 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from ._source import SOURCE_SUFFIX, read_source, render
+from ..process import AT_SIGNAL, PARTIAL_FILES
+from ._source import SOURCE_SUFFIX, read_source, render, source_indices
 
 __all__ = ["NOTEBOOKS", "COURSE_LOG_LESSONS", "Target", "sources", "targets", "render_source", "located", "comparable", "equal", "differing", "merge",
            "sync", "execute", "write_notebook"]
@@ -146,12 +147,44 @@ def merge(rendered, old):
     return out, new_code
 
 
-def execute(nb, path: Path, timeout: int = 1200):
+def _refuse_signal_handlers(*args, **kwargs):
+    raise RuntimeError("SIGINT and SIGTERM stay with the caller")
+
+
+def _end_kernel(km, sockets: str) -> None:
+    """Kill the kernel of ``km`` at once (if it runs) and remove its connection file and ``sockets``."""
+    process = getattr(getattr(km, "provisioner", None), "process", None)
+    if process is not None and process.poll() is None:
+        process.kill()
+    try:
+        km.cleanup_connection_file()
+    except Exception:  # noqa: BLE001 - best effort, as the kernel's own cleanup would be
+        pass
+    shutil.rmtree(sockets, ignore_errors=True)
+
+
+def _one_line(text: str, limit: int = 200) -> str:
+    text = " ".join(str(text).split())
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def execute(nb, path: Path, timeout: int = 1200, where: list[str] | None = None):
     """Run ``nb`` (which lives at ``path``) top to bottom in a fresh kernel, in ``path``'s folder, with
     ``KFCAL_QUIET=1``; the course log (``KFCAL_COURSE_LOG``) only for :data:`COURSE_LOG_LESSONS`.  The
-    kernel listens on Unix sockets (:func:`kfcal_helpers.kernels.over_ipc`; TCP on Windows)."""
+    kernel listens on Unix sockets (:func:`kfcal_helpers.kernels.over_ipc`; TCP on Windows) and is shut
+    down when the run ends, however it ends.
+
+    A cell that raises is a ``ValueError`` of one line naming the notebook, the cell (its index, and
+    ``where[index]``, e.g. the source file and line it comes from) and the exception; a kernel that dies
+    or a cell that runs longer than ``timeout`` s is one too.  SIGINT and SIGTERM stay with the caller's
+    handlers (nbclient's own are not installed): the command line's print one line and end the process
+    with 130 or 143, after killing the kernel (:data:`kfcal_helpers.process.AT_SIGNAL`); elsewhere Ctrl-C
+    raises ``KeyboardInterrupt`` and the kernel is killed on the way out."""
+    import asyncio
+
     from jupyter_client import AsyncKernelManager
     from nbclient import NotebookClient
+    from nbclient.exceptions import CellExecutionError, CellTimeoutError, DeadKernelError
 
     from ..kernels import over_ipc
 
@@ -160,15 +193,39 @@ def execute(nb, path: Path, timeout: int = 1200):
     if not (path.parent.name != "solutions" and path.stem in COURSE_LOG_LESSONS):
         os.environ.pop("KFCAL_COURSE_LOG", None)
     sockets = tempfile.mkdtemp(prefix="kfcal-kernel-")
+    # the kernel on Unix sockets of its own (kfcal_helpers.kernels: no TCP port to race for); TCP on Windows
+    km = over_ipc(AsyncKernelManager, folder=sockets)(kernel_name="python3")
+    current = {"cell": None}
+
+    def on_cell_execute(cell, cell_index):
+        current["cell"] = cell_index
+
+    def end():
+        _end_kernel(km, sockets)
+
+    client = NotebookClient(nb, km=km, timeout=timeout, kernel_name="python3", on_cell_execute=on_cell_execute,
+                            resources={"metadata": {"path": str(path.parent)}})
+    # nbclient would put its own SIGINT/SIGTERM handlers on the event loop, over the caller's: refused
+    loop = asyncio.new_event_loop()
+    loop.add_signal_handler = loop.remove_signal_handler = _refuse_signal_handlers
+    AT_SIGNAL.append(end)
     try:
-        # the kernel on Unix sockets of its own (kfcal_helpers.kernels: no TCP port to race for); TCP on Windows
-        km = over_ipc(AsyncKernelManager, folder=sockets)(kernel_name="python3")
-        NotebookClient(nb, km=km, timeout=timeout, kernel_name="python3",
-                       resources={"metadata": {"path": str(path.parent)}}).execute()
+        loop.run_until_complete(client.async_execute(cleanup_kc=True))
+    except CellExecutionError as exc:
+        index = current["cell"]
+        origin = f" ({where[index]})" if where is not None and index is not None and index < len(where) else ""
+        reason = _one_line(exc.evalue)
+        raise ValueError(f"{path.name}, cell {index}{origin} raised {exc.ename}" + (f": {reason}" if reason else "")) \
+            from None
+    except (CellTimeoutError, DeadKernelError) as exc:
+        index = current["cell"]
+        raise ValueError(f"{path.name}, cell {index}: {_one_line(exc)}") from None
     finally:
+        AT_SIGNAL.remove(end)
+        end()
+        loop.close()
         os.environ.clear()
         os.environ.update(saved)
-        shutil.rmtree(sockets, ignore_errors=True)
     return nb
 
 
@@ -179,12 +236,15 @@ def write_notebook(nb, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
+    PARTIAL_FILES.add(tmp)   # removed by the command line's signal handler
     try:
         nbformat.write(nb, tmp)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    finally:
+        PARTIAL_FILES.discard(tmp)
 
 
 def sync(notebooks: Path = NOTEBOOKS, *, run: bool = False, log=print) -> list[tuple[Path, str]]:
@@ -208,7 +268,9 @@ def sync(notebooks: Path = NOTEBOOKS, *, run: bool = False, log=print) -> list[t
                         and not os.environ.get("KFCAL_COURSE_LOG")):
                     log(f"note: KFCAL_COURSE_LOG is not set; {target.path.name} is committed executed with the "
                         f"course log")
-                execute(nb, target.path)
+                source_nb, lines = read_source(target.source, with_lines=True)
+                where = [f"{target.source.name}, line {lines[i]}" for i in source_indices(source_nb, target.which)]
+                execute(nb, target.path, where=where)
                 state = "executed"
             else:
                 state = "needs execution"
