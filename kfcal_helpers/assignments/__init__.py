@@ -84,12 +84,12 @@ from ._nbgrader import COURSE_ID, INSTRUCTORS_FILE, check_modules, generate, nbg
 from ._source import (MARKERS, MAX_CELLS, MAX_METADATA_BYTES, MAX_METADATA_DEPTH, MAX_SOURCE_BYTES, ROLES,
                       SOURCE_SUFFIX, AnswerCell, answer_cells, parse_answer, read_source, render,
                       render_lesson, render_solutions, validate)
-from ._sync import (COURSE_LOG_LESSONS, NOTEBOOKS, Target, comparable, differing, equal, execute, merge, render_source,
+from ._sync import (NOTEBOOKS, Target, comparable, differing, equal, execute, merge, render_source,
                     sources, sync, targets, write_notebook)
 
 __all__ = ["ROLES", "MARKERS", "SOURCE_SUFFIX", "MAX_SOURCE_BYTES", "MAX_CELLS", "MAX_METADATA_BYTES", "MAX_METADATA_DEPTH",
            "AnswerCell", "read_source", "parse_answer", "validate",
-           "answer_cells", "render", "render_lesson", "render_solutions", "NOTEBOOKS", "COURSE_LOG_LESSONS", "Target",
+           "answer_cells", "render", "render_lesson", "render_solutions", "NOTEBOOKS", "Target",
            "sources", "targets", "render_source", "comparable", "equal",
            "differing", "merge", "sync", "execute", "COURSE_ID", "INSTRUCTORS_FILE", "check_modules",
            "nbgrader_notebook", "write_course", "generate", "add_parser", "write_notebook"]

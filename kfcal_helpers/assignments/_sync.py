@@ -20,13 +20,11 @@ from pathlib import Path
 from ..process import AT_SIGNAL, PARTIAL_FILES
 from ._source import SOURCE_SUFFIX, read_source, render, source_indices
 
-__all__ = ["NOTEBOOKS", "COURSE_LOG_LESSONS", "Target", "sources", "targets", "render_source", "located", "comparable", "equal", "differing", "merge",
+__all__ = ["NOTEBOOKS", "Target", "sources", "targets", "render_source", "located", "comparable", "equal", "differing", "merge",
            "sync", "execute", "write_notebook"]
 
 #: the repository's notebooks folder (lessons; ``solutions/`` and ``source/`` below it)
 NOTEBOOKS = Path(__file__).resolve().parents[2] / "notebooks"
-#: the lessons committed executed with the course log (``KFCAL_COURSE_LOG``); all others run without it
-COURSE_LOG_LESSONS = frozenset({"10_coop_lkf", "14_mistakes_and_checks"})
 
 
 @dataclass(frozen=True)
@@ -170,7 +168,8 @@ def _one_line(text: str, limit: int = 200) -> str:
 
 def execute(nb, path: Path, timeout: int = 1200, where: list[str] | None = None):
     """Run ``nb`` (which lives at ``path``) top to bottom in a fresh kernel, in ``path``'s folder, with
-    ``KFCAL_QUIET=1``; the course log (``KFCAL_COURSE_LOG``) only for :data:`COURSE_LOG_LESSONS`.  The
+    ``KFCAL_QUIET=1`` and without the course log (``KFCAL_COURSE_LOG`` unset: every notebook is committed in the
+    mode a student without the log gets; the course-log numbers in the text are labelled as such).  The
     kernel listens on Unix sockets (:func:`kfcal_helpers.kernels.over_ipc`; TCP on Windows) and is shut
     down when the run ends, however it ends.
 
@@ -190,8 +189,7 @@ def execute(nb, path: Path, timeout: int = 1200, where: list[str] | None = None)
 
     saved = dict(os.environ)
     os.environ["KFCAL_QUIET"] = "1"
-    if not (path.parent.name != "solutions" and path.stem in COURSE_LOG_LESSONS):
-        os.environ.pop("KFCAL_COURSE_LOG", None)
+    os.environ.pop("KFCAL_COURSE_LOG", None)
     sockets = tempfile.mkdtemp(prefix="kfcal-kernel-")
     # the kernel on Unix sockets of its own (kfcal_helpers.kernels: no TCP port to race for); TCP on Windows
     km = over_ipc(AsyncKernelManager, folder=sockets)(kernel_name="python3")
@@ -264,10 +262,6 @@ def sync(notebooks: Path = NOTEBOOKS, *, run: bool = False, log=print) -> list[t
         if new_code:
             if run:
                 log(f"executing {target.path.relative_to(notebooks.parent)} ...")
-                if (target.which == "lesson" and target.path.stem in COURSE_LOG_LESSONS
-                        and not os.environ.get("KFCAL_COURSE_LOG")):
-                    log(f"note: KFCAL_COURSE_LOG is not set; {target.path.name} is committed executed with the "
-                        f"course log")
                 source_nb, lines = read_source(target.source, with_lines=True)
                 where = [f"{target.source.name}, line {lines[i]}" for i in source_indices(source_nb, target.which)]
                 execute(nb, target.path, where=where)
