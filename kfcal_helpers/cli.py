@@ -144,8 +144,12 @@ def _main(argv, state: dict) -> int:
                     f"the range this command handles")
         return EXIT_USAGE
     except MemoryError:
-        advice = ("use a shorter log (fewer steps)" if getattr(args, "log", None) is not None
-                  else "use fewer or shorter realizations")
+        if args.command == "assignments":
+            advice = "a lesson source or notebook is too large to render"
+        elif getattr(args, "log", None) is not None:
+            advice = "use a shorter log (fewer steps)"
+        else:
+            advice = "use fewer or shorter realizations"
         _error_line(f"{command}: error: not enough memory for this run; {advice}")
         return EXIT_USAGE
     except OSError as exc:

@@ -343,3 +343,17 @@ def test_execute_ends_its_kernel_however_the_run_ends(last, tmp_path):
     while _alive(kernel) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not _alive(kernel), "the kernel outlived the run"
+
+
+def test_memory_error_while_rendering_blames_the_sources(monkeypatch, capsys):
+    """Out of memory in `assignments`: the advice is about the sources, not about realizations or logs."""
+    import kfcal_helpers.assignments._sync as assignments_sync
+
+    def no_memory(*a, **k):
+        raise MemoryError
+
+    monkeypatch.setattr(assignments_sync, "sync", no_memory)
+    code = main(["assignments"])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    assert "not enough memory" in err and "lesson source" in err and "realizations" not in err

@@ -14,7 +14,7 @@ nobody opens an unexecuted notebook holding the solutions::
       name: python3
     ---
 
-    # 01 — The truth model
+    # 01 · The truth model
 
     ```{code-cell} ipython3
     import numpy as np
