@@ -11,11 +11,14 @@ Modules:
 * :mod:`.model` -- dynamics, the closed-form circular nominal, station states, the visibility rule, the
   measurements and their Jacobians A and C_i, the DT model (F, Omega) and the filters' RK4 one-step map;
 * :mod:`.simulation` -- the truth model (``solve_ivp``), noisy measurements of the visible stations and
-  logs in the course's per-step column format (:class:`OrbitLog`).
+  logs in the course's per-step column format (:class:`OrbitLog`);
+* :mod:`.filters` -- LKF, EKF, UKF on filterpy's classes, one run, with the measurement size of each step
+  (:func:`run_filter`, :class:`FilterSetup`, :class:`FilterResult`).
 
 Not yet registered in :mod:`kfcal_helpers.problems` (no command line or Monte Carlo yet).
 """
 
+from .filters import FILTERS, FilterResult, FilterSetup, OrbitEKF, run, run_ekf, run_filter, run_lkf, run_ukf
 from .model import (
     PHI,
     TRANSITIONS,
@@ -46,6 +49,7 @@ from .simulation import (
 )
 
 __all__ = [
+    "FILTERS", "FilterResult", "FilterSetup", "OrbitEKF", "run", "run_ekf", "run_filter", "run_lkf", "run_ukf",
     "PHI", "TRANSITIONS", "discretize", "dynamics", "jacobian_A", "jacobian_C", "measure", "nominal_state",
     "nominal_trajectory", "propagate", "station_angles", "station_states", "visible", "wrap_phi",
     "MAX_STATIONS", "N_NOISE", "N_STATES", "N_STATION_MEAS", "OrbitParams",

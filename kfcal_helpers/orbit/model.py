@@ -21,10 +21,12 @@ which is ``phi`` within pi/2 of ``theta_i``.  Every function takes arrays with l
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.linalg import expm
 
-from ..angles import wrap_angle
+from ..angles import AngleLayout, wrap_angle
 from ..validation import require_choice, require_int, require_positive
 from .params import N_STATES, N_STATION_MEAS, OrbitParams
 
@@ -47,6 +49,9 @@ __all__ = [
     "rk4_flow",
     "propagate",
     "wrap_phi",
+    "measurement_layout",
+    "stacked_measurement",
+    "stacked_jacobian",
 ]
 
 PHI = 2  #: position of phi in a station's [rho, rhodot, phi]
@@ -290,3 +295,25 @@ def wrap_phi(z) -> np.ndarray:
     z = np.array(z, dtype=float)
     z[..., PHI] = wrap_angle(z[..., PHI])
     return z
+
+
+@functools.lru_cache(maxsize=None)
+def measurement_layout(m: int) -> AngleLayout:
+    """The layout of ``m`` stations' measurements stacked, ``[rho_1, rhodot_1, phi_1, rho_2, ...]`` (3m,):
+    phi at positions 2, 5, ... (its wrap, residual ``a - b`` and circular mean, for the filters)."""
+    return AngleLayout(N_STATION_MEAS * m, tuple(range(PHI, N_STATION_MEAS * m, N_STATION_MEAS)))
+
+
+def stacked_measurement(x, t, stations, params: OrbitParams | None = None) -> np.ndarray:
+    """Noise-free measurements of the stations ``stations`` (0-based indices, in that order) stacked,
+    shape (..., 3m) (km, km/s, rad; phi wrapped), at states ``x`` (..., 4) and time ``t`` (s)."""
+    ids = np.asarray(stations, dtype=int)
+    return measure(x, t, params)[..., ids, :].reshape(np.shape(x)[:-1] + (N_STATION_MEAS * ids.size,))
+
+
+def stacked_jacobian(x, t, stations, params: OrbitParams | None = None) -> np.ndarray:
+    """Jacobian (..., 3m, 4) of :func:`stacked_measurement`: the rows ``C_i`` of the stations
+    ``stations`` in that order."""
+    ids = np.asarray(stations, dtype=int)
+    C = jacobian_C(x, t, params)[..., ids, :, :]
+    return C.reshape(np.shape(x)[:-1] + (N_STATION_MEAS * ids.size, N_STATES))
