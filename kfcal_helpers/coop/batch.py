@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints
 
+from ..batching import BatchArrays
 from ..unscented import batch_sigma_points, gain_solve, mT, unscented_moments
 from ..validation import require_instance
 from .filters import FilterSetup
@@ -47,7 +48,7 @@ __all__ = ["BatchResult", "run_batch", "run_lkf_batch", "run_ekf_batch", "run_uk
 
 
 @dataclass(frozen=True, eq=False)
-class BatchResult:
+class BatchResult(BatchArrays):
     """Output of a filter run on N realizations over K samples.
 
     filter : "lkf", "ekf" or "ukf"; t : (K,) s; measurements : the rows of y used (the NIS has
@@ -60,14 +61,6 @@ class BatchResult:
     (``keep_estimates=True``), else None
     """
 
-    filter: str
-    t: np.ndarray
-    nis: np.ndarray
-    sigma2: np.ndarray
-    nees: np.ndarray | None = None
-    errors: np.ndarray | None = None
-    x: np.ndarray | None = None
-    P: np.ndarray | None = None
     measurements: tuple = tuple(range(N_MEAS))
 
 

@@ -13,11 +13,14 @@ Modules:
 * :mod:`.simulation` -- the truth model (``solve_ivp``), noisy measurements of the visible stations and
   logs in the course's per-step column format (:class:`OrbitLog`);
 * :mod:`.filters` -- LKF, EKF, UKF on filterpy's classes, one run, with the measurement size of each step
-  (:func:`run_filter`, :class:`FilterSetup`, :class:`FilterResult`).
+  (:func:`run_filter`, :class:`FilterSetup`, :class:`FilterResult`);
+* :mod:`.batch` -- the same three filters on N realizations at once (the stations of each run masked
+  into common slots), proven equal to the per-run filters: :func:`run_batch`, :class:`BatchResult`.
 
 Not yet registered in :mod:`kfcal_helpers.problems` (no command line or Monte Carlo yet).
 """
 
+from .batch import BatchResult, run_batch
 from .filters import FILTERS, FilterResult, FilterSetup, OrbitEKF, run, run_ekf, run_filter, run_lkf, run_ukf
 from .model import (
     PHI,
@@ -49,6 +52,7 @@ from .simulation import (
 )
 
 __all__ = [
+    "BatchResult", "run_batch",
     "FILTERS", "FilterResult", "FilterSetup", "OrbitEKF", "run", "run_ekf", "run_filter", "run_lkf", "run_ukf",
     "PHI", "TRANSITIONS", "discretize", "dynamics", "jacobian_A", "jacobian_C", "measure", "nominal_state",
     "nominal_trajectory", "propagate", "station_angles", "station_states", "visible", "wrap_phi",
