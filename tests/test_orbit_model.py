@@ -205,3 +205,13 @@ def test_bad_inputs_name_the_argument():
         visible(np.ones(4), 0.0, params={})
     with pytest.raises(ValueError, match="station ids"):
         from_columns([np.array([[1.0], [0.1], [0.2], [13.0]])])
+
+
+def test_rk4_truth_agrees_with_solve_ivp_on_the_same_draws():
+    a = simulate(P, 2, seed=8)
+    b = simulate(P, 2, seed=8, integrator="rk4")
+    assert np.abs(a.truth - a.truth[:, :1]).max() > 1000  # the orbit moved
+    np.testing.assert_allclose(b.truth, a.truth, rtol=0, atol=1e-7)  # km, km/s over the 1400 steps
+    np.testing.assert_array_equal(np.isfinite(b.y), np.isfinite(a.y))
+    with pytest.raises(ValueError, match="integrator"):
+        simulate(P, seed=8, integrator="euler")

@@ -262,15 +262,20 @@ def discretize(A, dt: float = 10.0, transition: str = "euler") -> np.ndarray:
     return np.stack([expm(a) for a in flat]).reshape(A.shape)
 
 
-def rk4_flow(x, dt: float, mu: float, substeps: int):
-    """The RK4 map over ``dt`` (s) in ``substeps`` equal substeps of the noise-free dynamics, without
-    checks: ``x`` (..., 4) float array (the fast core of :func:`propagate`)."""
+def rk4_flow(x, dt: float, mu: float, substeps: int, push=None):
+    """The RK4 map over ``dt`` (s) in ``substeps`` equal substeps of ``xdot = f(x) + push``, without checks:
+    ``x`` (..., 4) float array, ``push`` (..., 4) a constant added to the derivative (``Gamma w``, the
+    acceleration noise held over the step; default none).  The fast core of :func:`propagate`."""
     h = dt / substeps
+
+    def deriv(z):
+        return _f(z, mu) if push is None else _f(z, mu) + push
+
     for _ in range(substeps):
-        k1 = _f(x, mu)
-        k2 = _f(x + 0.5 * h * k1, mu)
-        k3 = _f(x + 0.5 * h * k2, mu)
-        k4 = _f(x + h * k3, mu)
+        k1 = deriv(x)
+        k2 = deriv(x + 0.5 * h * k1)
+        k3 = deriv(x + 0.5 * h * k2)
+        k4 = deriv(x + h * k3)
         x = x + (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
     return x
 
