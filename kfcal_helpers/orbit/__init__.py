@@ -15,9 +15,11 @@ Modules:
 * :mod:`.filters` -- LKF, EKF, UKF on filterpy's classes, one run, with the measurement size of each step
   (:func:`run_filter`, :class:`FilterSetup`, :class:`FilterResult`);
 * :mod:`.batch` -- the same three filters on N realizations at once (the stations of each run masked
-  into common slots), proven equal to the per-run filters: :func:`run_batch`, :class:`BatchResult`.
+  into common slots), proven equal to the per-run filters: :func:`run_batch`, :class:`BatchResult`;
+* :mod:`.montecarlo` -- truth-model tests through the shared Monte Carlo core (:class:`OrbitExperiment`,
+  :func:`truth_model_test`), NEES and NIS checked per step with the dof present.
 
-Not yet registered in :mod:`kfcal_helpers.problems` (no command line or Monte Carlo yet).
+Not yet registered in :mod:`kfcal_helpers.problems` (no command line, plots or mistakes yet).
 """
 
 from .batch import BatchResult, run_batch
@@ -38,6 +40,7 @@ from .model import (
     visible,
     wrap_phi,
 )
+from .montecarlo import MonteCarloResult, OrbitExperiment, truth_model_test
 from .params import MAX_STATIONS, N_NOISE, N_STATES, N_STATION_MEAS, OrbitParams
 from .simulation import (
     DEFAULT_LOG_SEED,
@@ -52,7 +55,7 @@ from .simulation import (
 )
 
 __all__ = [
-    "BatchResult", "run_batch",
+    "BatchResult", "run_batch", "MonteCarloResult", "OrbitExperiment", "truth_model_test",
     "FILTERS", "FilterResult", "FilterSetup", "OrbitEKF", "run", "run_ekf", "run_filter", "run_lkf", "run_ukf",
     "PHI", "TRANSITIONS", "discretize", "dynamics", "jacobian_A", "jacobian_C", "measure", "nominal_state",
     "nominal_trajectory", "propagate", "station_angles", "station_states", "visible", "wrap_phi",
