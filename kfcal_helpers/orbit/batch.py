@@ -27,7 +27,7 @@ from ..batching import BatchArrays
 from ..unscented import batch_sigma_points, gain_solve, mT, unscented_moments
 from ..validation import require_instance
 from .filters import FilterSetup, check_measurements
-from .model import jacobian_C, measure, measurement_layout, nominal_trajectory, require_states
+from .model import jacobian_relative, measure_relative, measurement_layout, nominal_trajectory, require_states, station_states
 from .params import N_STATES, N_STATION_MEAS
 
 __all__ = ["BatchResult", "run_batch", "run_lkf_batch", "run_ekf_batch", "run_ukf_batch"]
@@ -64,28 +64,41 @@ def _inputs(y, setup, truth):
 class _Slots:
     """The stations of step k laid out in M slots per run: ``order`` (N, M) station indices (the run's
     stations first, increasing), ``valid`` (N, M), ``z`` (N, 3M) their measurements (0 in padding),
-    ``R`` (N, 3M, 3M) block diagonal."""
+    ``at`` (N, M, 4) the slots' station states, ``R`` (3M, 3M) block diagonal."""
 
-    def __init__(self, yk, R):
-        have = np.isfinite(yk).all(axis=-1)  # (N, n_stations)
+    _R = {}  # (M, R bytes) -> the block-diagonal R
+
+    def __init__(self, yk, R, stations_k):
+        have = np.isfinite(yk[..., 0])  # (N, n_stations): rows are all finite or all NaN (checked)
         self.count = have.sum(axis=1)
         self.M = M = int(self.count.max())
+        if not M:
+            return
+        n = len(yk)
         self.order = np.argsort(~have, axis=1, kind="stable")[:, :M]
-        self.valid = np.take_along_axis(have, self.order, axis=1)
-        z = np.take_along_axis(yk, self.order[..., None], axis=1)
-        self.z = np.where(self.valid[..., None], z, 0.0).reshape(len(yk), N_STATION_MEAS * M)
-        self.R = np.kron(np.eye(M), R)
+        rows = np.arange(n)[:, None]
+        self.valid = have[rows, self.order]
+        self.z = np.where(self.valid[..., None], yk[rows, self.order], 0.0).reshape(n, N_STATION_MEAS * M)
+        self.at = stations_k[self.order]  # (N, M, 4)
+        self.mask = np.repeat(self.valid, N_STATION_MEAS, axis=1)  # (N, 3M)
+        key = (M, R.tobytes())
+        if key not in self._R:
+            self._R[key] = np.kron(np.eye(M), R)
+        self.R = self._R[key]
         self.layout = measurement_layout(M)
 
-    def gather(self, per_station, tail=()):
-        """The slots' rows of ``per_station`` (N, [points,] n_stations, 3, *tail), zero in padding, flattened to
-        (N, [points,] 3M, *tail)."""
-        extra = per_station.ndim - 3 - len(tail)  # 0, or 1 for the sigma points' axis
-        idx = self.order.reshape(self.order.shape[:1] + (1,) * extra + self.order.shape[1:] + (1,) * (1 + len(tail)))
-        rows = np.take_along_axis(per_station, idx, axis=1 + extra)
-        mask = self.valid.reshape(self.valid.shape[:1] + (1,) * extra + self.valid.shape[1:] + (1,) * (1 + len(tail)))
-        rows = np.where(mask, rows, 0.0)
-        return rows.reshape(rows.shape[:1 + extra] + (N_STATION_MEAS * self.M,) + tuple(tail))
+    def h(self, x):
+        """The slots' measurements (N, [points,] 3M) of states ``x`` (N, [points,] 4), zero in padding."""
+        extra = x.ndim - 2
+        at = self.at.reshape(self.at.shape[:1] + (1,) * extra + self.at.shape[1:])
+        m = measure_relative(x[..., None, :] - at)  # (N, [points,] M, 3)
+        m = m.reshape(m.shape[:-2] + (N_STATION_MEAS * self.M,))
+        return np.where(self.mask.reshape(self.mask.shape[:1] + (1,) * extra + self.mask.shape[1:]), m, 0.0)
+
+    def H(self, x):
+        """The slots' rows of the Jacobian (N, 3M, 4) at states ``x`` (N, 4), zero in padding."""
+        C = jacobian_relative(x[:, None, :] - self.at).reshape(len(x), N_STATION_MEAS * self.M, N_STATES)
+        return np.where(self.mask[..., None], C, 0.0)
 
 
 class _Store:
@@ -139,17 +152,17 @@ def run_lkf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
     t = p.dt * np.arange(K)
     xnom = nominal_trajectory(p, K)
     F, Q = s.F(xnom), p.process_noise(s.Q)
-    hnom, Cnom = measure(xnom, t, p), jacobian_C(xnom, t, p)  # (K, n_stations, 3), (K, n_stations, 3, 4)
+    stations = station_states(t, p)  # (K, n_stations, 4)
     out = _Store(n, K, truth, keep_estimates)
     dx, P = np.tile(s.x0 - xnom[0], (n, 1)), np.tile(s.P0, (n, 1, 1))
     for k in range(K):
         if k > 0:
             dx = dx @ F[k - 1].T
             P = F[k - 1] @ P @ F[k - 1].T + Q
-        slots = _Slots(y[:, k], s.R)
+        slots = _Slots(y[:, k], s.R, stations[k])
         if slots.M:
-            H = slots.gather(np.broadcast_to(Cnom[k], (n,) + Cnom.shape[1:]), (N_STATES,))
-            ynom = slots.gather(np.broadcast_to(hnom[k], (n,) + hnom.shape[1:]))
+            at_nominal = np.broadcast_to(xnom[k], (n, N_STATES))
+            H, ynom = slots.H(at_nominal), slots.h(at_nominal)
             dz = (H @ dx[..., None])[..., 0]
             innov = slots.layout.residual(slots.z, slots.layout.wrap(ynom + dz))
             nu = (dz + innov) - (H @ dx[..., None])[..., 0]  # filterpy's z - H x with z = H dx- + innovation
@@ -169,6 +182,7 @@ def run_ekf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
     p = s.params
     n, K = y.shape[:2]
     Q = p.process_noise(s.Q)
+    stations = station_states(p.dt * np.arange(K), p)
     out = _Store(n, K, truth, keep_estimates)
     x, P = np.tile(s.x0, (n, 1)), np.tile(s.P0, (n, 1, 1))  # (x0, P0) of every run
     for k in range(K):
@@ -176,12 +190,10 @@ def run_ekf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
             F = s.F(x)
             x = s.fx(x)
             P = F @ P @ mT(F) + Q
-        slots = _Slots(y[:, k], s.R)
+        slots = _Slots(y[:, k], s.R, stations[k])
         if slots.M:
-            tk = p.dt * k
-            H = slots.gather(jacobian_C(x, tk, p), (N_STATES,))
-            nu = np.where(np.repeat(slots.valid, N_STATION_MEAS, axis=1),
-                          slots.layout.residual(slots.z, slots.gather(measure(x, tk, p))), 0.0)
+            H = slots.H(x)
+            nu = np.where(slots.mask, slots.layout.residual(slots.z, slots.h(x)), 0.0)
             PHT = P @ mT(H)
             gain, SInu = gain_solve(H @ PHT + slots.R, PHT, nu)
             x = x + (gain @ nu[..., None])[..., 0]
@@ -203,13 +215,14 @@ def run_ukf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
     p = s.params
     n, K = y.shape[:2]
     Q = p.process_noise(s.Q)
+    stations = station_states(p.dt * np.arange(K), p)
     out = _Store(n, K, truth, keep_estimates)
     points = MerweScaledSigmaPoints(N_STATES, alpha=s.alpha, beta=s.beta, kappa=s.kappa)
     Wm, Wc = points.Wm, points.Wc
     x, P = np.tile(s.x0, (n, 1)), np.tile(s.P0, (n, 1, 1))  # (x0, P0) of every run
     sigmas_f = None
     for k in range(K):
-        slots = _Slots(y[:, k], s.R)
+        slots = _Slots(y[:, k], s.R, stations[k])
         if k > 0:
             x, _, P = unscented_moments(s.fx(batch_sigma_points(x, P, points)), _plain_mean, Wm, Wc, np.subtract)
             P = P + Q
@@ -218,10 +231,10 @@ def run_ukf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
         elif slots.M:
             sigmas_f = batch_sigma_points(x, P, points)
         if slots.M:
-            sigmas_h = slots.gather(measure(sigmas_f, p.dt * k, p))  # (N, 9, 3M), zero in padding
+            sigmas_h = slots.h(sigmas_f)  # (N, 9, 3M), zero in padding
             zp, dz, S = unscented_moments(sigmas_h, slots.layout.mean, Wm, Wc, slots.layout.residual)
             Pxz = mT((sigmas_f - x[:, None, :]) * Wc[:, None]) @ dz
-            nu = np.where(np.repeat(slots.valid, N_STATION_MEAS, axis=1), slots.layout.residual(slots.z, zp), 0.0)
+            nu = np.where(slots.mask, slots.layout.residual(slots.z, zp), 0.0)
             gain, SInu = gain_solve(S + slots.R, Pxz, nu)
             x = x + (gain @ nu[..., None])[..., 0]
             P = P - gain @ (S + slots.R) @ mT(gain)

@@ -40,6 +40,7 @@ from ..consistency import nees as _nees
 from ..unscented import VectorizedUKF, robust_sqrt
 from ..validation import require_choice, require_covariance, require_instance, require_int, require_shape
 from .model import (
+    PROPAGATION_SUBSTEPS,
     TRANSITIONS,
     discretize,
     jacobian_A,
@@ -71,7 +72,7 @@ class FilterSetup:
     R : (3, 3) one station's measurement-noise covariance [km^2, (km/s)^2, rad^2] (default ``params.Rtrue``)
     x0, P0 : initial estimate (4,) and covariance (4, 4) (default ``params.x0``, ``params.P0``)
     transition : how F comes from A: "euler" (``I + dt A``, default) or "expm"
-    substeps : RK4 substeps of the EKF's and UKF's one-step map (default 4)
+    substeps : RK4 substeps of the EKF's and UKF's one-step map (default 2: 5 s each)
     alpha, beta, kappa : the UKF's Merwe scaled sigma points (default 1, 2, 0)
     """
 
@@ -82,7 +83,7 @@ class FilterSetup:
     x0: np.ndarray | None = None
     P0: np.ndarray | None = None
     transition: str = "euler"
-    substeps: int = 4
+    substeps: int = PROPAGATION_SUBSTEPS
     alpha: float = 1.0
     beta: float = 2.0
     kappa: float = 0.0
