@@ -22,7 +22,7 @@ def test_the_test_filters_the_core_s_draws_and_does_not_depend_on_workers():
     for name in ("nees", "nis", "dof", "errors", "sigma2"):
         np.testing.assert_array_equal(getattr(one, name), getattr(two, name))
     (s0, g0), (s1, g1) = core.chunk_generators(CHUNK_SIZE, n, 3)
-    sims = [simulate(P, s0, g0), simulate(P, s1, g1)]
+    sims = [simulate(P, s0, g0, integrator="rk4"), simulate(P, s1, g1, integrator="rk4")]
     b = [run_batch(s.y, FilterSetup("ekf", P), s.truth) for s in sims]
     np.testing.assert_array_equal(one.nees, np.concatenate([x.nees for x in b]))
     np.testing.assert_array_equal(one.dof, 3 * np.concatenate([np.isfinite(s.y).all(axis=-1).sum(axis=-1) for s in sims]))
@@ -31,7 +31,7 @@ def test_the_test_filters_the_core_s_draws_and_does_not_depend_on_workers():
 
 @pytest.mark.parametrize("name", ["ekf", "ukf"])
 def test_ekf_and_ukf_pass_their_truth_model_checks(name):
-    r = truth_model_test(P, 40, 5, filter=name, integrator="rk4")
+    r = truth_model_test(P, 40, 5, filter=name, integrator="solve_ivp")
     checks = r.checks()
     print(format_checks(r))
     assert set(checks) == {"mean_error", "nees", "nis"}
@@ -43,7 +43,7 @@ def test_ekf_and_ukf_pass_their_truth_model_checks(name):
 
 def test_lkf_fails_when_the_orbit_drifts_from_the_nominal():
     p = replace(OrbitParams(), n_steps=700)  # half the pass: the truth is hundreds of km off the nominal
-    r = truth_model_test(p, 20, 2, filter="lkf", integrator="rk4")
+    r = truth_model_test(p, 20, 2, filter="lkf")
     assert not r.checks()["nees"].passed
 
 
