@@ -43,6 +43,8 @@ __all__ = [
     "station_angles",
     "station_states",
     "visible",
+    "horizon",
+    "relative_states",
     "measure",
     "measure_relative",
     "jacobian_relative",
@@ -90,14 +92,20 @@ def _gravity(x, mu):
     return X, Y, r2, mu / (r2 * np.sqrt(r2))
 
 
-def _f(x, mu):
-    """f(x) without checks: ``x`` (..., 4) float array."""
-    X, Y, _, g = _gravity(x, mu)
-    out = np.empty(x.shape)
-    out[..., 0] = x[..., 1]
-    out[..., 1] = -g * X
-    out[..., 2] = x[..., 3]
-    out[..., 3] = -g * Y
+def _f(x, mu, push=None):
+    """f(x) (+ push) without checks: ``x`` (..., 4) float array, ``push`` (..., 4) or None."""
+    X, Y = x[..., 0], x[..., 2]
+    r2 = X * X + Y * Y
+    g = -mu / (r2 * np.sqrt(r2))
+    out = np.empty(x.shape) if push is None else push.copy()
+    if push is None:
+        out[..., 0], out[..., 2] = x[..., 1], x[..., 3]
+        out[..., 1], out[..., 3] = g * X, g * Y
+    else:
+        out[..., 0] += x[..., 1]
+        out[..., 2] += x[..., 3]
+        out[..., 1] += g * X
+        out[..., 3] += g * Y
     return out
 
 
@@ -177,11 +185,13 @@ def station_states(t, params: OrbitParams | None = None) -> np.ndarray:
     return np.stack([p.RE * c, -p.RE * p.omegaE * s, p.RE * s, p.RE * p.omegaE * c], axis=-1)
 
 
-def _relative(x, t, p):
-    """Satellite minus stations: (..., n_stations, 4) for ``x`` (..., 4) and ``t`` broadcast with x[..., 0]."""
-    t = np.broadcast_to(np.asarray(t, dtype=float), x.shape[:-1])
+def relative_states(x, t, params: OrbitParams | None = None):
+    """Satellite minus stations, ``d = x - x_i`` (..., n_stations, 4), and the station states, for states
+    ``x`` (..., 4) (not checked) at times ``t`` (s) broadcast with x's leading axes: the stations are computed
+    once per distinct time (shape t.shape + (n_stations, 4)) and broadcast."""
+    p = params_or_default(params)
     st = station_states(t, p)
-    return x[..., None, :] - st, st
+    return np.asarray(x, dtype=float)[..., None, :] - st, st
 
 
 def visible(x, t, params: OrbitParams | None = None) -> np.ndarray:
@@ -190,7 +200,13 @@ def visible(x, t, params: OrbitParams | None = None) -> np.ndarray:
     leading axes)."""
     p = params_or_default(params)
     x = require_states("x", x)
-    d, st = _relative(x, t, p)
+    d, st = relative_states(x, t, p)
+    return horizon(d, st)
+
+
+def horizon(d, st) -> np.ndarray:
+    """``(r - r_i) . r_i > 0`` from relative states ``d`` (..., n_stations, 4) and station states ``st``
+    (broadcast with d): bool (..., n_stations)."""
     return d[..., 0] * st[..., 0] + d[..., 2] * st[..., 2] > 0.0
 
 
@@ -212,7 +228,7 @@ def measure(x, t, params: OrbitParams | None = None) -> np.ndarray:
     x's leading axes)."""
     p = params_or_default(params)
     x = require_states("x", x)
-    d, _ = _relative(x, t, p)
+    d, _ = relative_states(x, t, p)
     return measure_relative(d)
 
 
@@ -228,7 +244,7 @@ def jacobian_C(x, t, params: OrbitParams | None = None) -> np.ndarray:
     """
     p = params_or_default(params)
     x = require_states("x", x)
-    d, _ = _relative(x, t, p)
+    d, _ = relative_states(x, t, p)
     return jacobian_relative(d)
 
 
@@ -273,15 +289,11 @@ def rk4_flow(x, dt: float, mu: float, substeps: int, push=None):
     ``x`` (..., 4) float array, ``push`` (..., 4) a constant added to the derivative (``Gamma w``, the
     acceleration noise held over the step; default none).  The fast core of :func:`propagate`."""
     h = dt / substeps
-
-    def deriv(z):
-        return _f(z, mu) if push is None else _f(z, mu) + push
-
     for _ in range(substeps):
-        k1 = deriv(x)
-        k2 = deriv(x + 0.5 * h * k1)
-        k3 = deriv(x + 0.5 * h * k2)
-        k4 = deriv(x + h * k3)
+        k1 = _f(x, mu, push)
+        k2 = _f(x + (0.5 * h) * k1, mu, push)
+        k3 = _f(x + (0.5 * h) * k2, mu, push)
+        k4 = _f(x + h * k3, mu, push)
         x = x + (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
     return x
 

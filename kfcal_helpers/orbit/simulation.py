@@ -26,7 +26,7 @@ from scipy.linalg import cholesky
 
 from ..validation import as_generator, require_int
 from ..validation import require_choice
-from .model import measure, params_or_default, require_states, rk4_flow, visible, wrap_phi
+from .model import horizon, measure_relative, params_or_default, relative_states, require_states, rk4_flow, wrap_phi
 from .params import N_NOISE, N_STATES, N_STATION_MEAS, OrbitParams
 
 __all__ = ["DEFAULT_LOG_SEED", "ODE_RTOL", "ODE_ATOL", "INTEGRATORS", "RK4_TRUTH_SUBSTEPS", "integrate", "simulate_truth", "simulate_measurements",
@@ -113,9 +113,9 @@ def simulate_measurements(truth, params: OrbitParams | None = None, seed=None, f
     truth = require_states("truth", truth)
     if truth.ndim < 2:
         raise ValueError(f"truth must have shape (..., K, 4), got {truth.shape}")
-    t = p.dt * np.arange(truth.shape[-2])
-    y = wrap_phi(measure(truth, t, p) + _gaussian(rng, p.Rtrue, truth.shape[:-1] + (p.n_stations,)))
-    y[~visible(truth, t, p)] = np.nan
+    d, st = relative_states(truth, p.dt * np.arange(truth.shape[-2]), p)  # stations once per step
+    y = wrap_phi(measure_relative(d) + _gaussian(rng, p.Rtrue, truth.shape[:-1] + (p.n_stations,)))
+    y[~horizon(d, st)] = np.nan
     if not first:
         y[..., 0, :, :] = np.nan
     return y
