@@ -185,7 +185,7 @@ def test_noise_free_truth_from_the_nominal_is_the_nominal():
 
 
 @pytest.mark.parametrize("kwargs,name", [
-    ({"dt": 0.0}, "dt"), ({"n_steps": 0}, "n_steps"), ({"Qtrue": np.eye(3)}, "Qtrue"),
+    ({"dt": 0.0}, "dt"), ({"n_steps": 0}, "n_steps"), ({"n_steps": 10**9}, "n_steps"), ({"Qtrue": np.eye(3)}, "Qtrue"),
     ({"Rtrue": -np.eye(3)}, "Rtrue"), ({"dx0": [1, 2]}, "dx0"), ({"r0": 6000.0}, "r0"),
     ({"n_stations": 0}, "n_stations"), ({"omegaE": -1.0}, "omegaE"), ({"P0": np.ones((4, 4))}, "P0"),
 ])

@@ -17,12 +17,15 @@ import numpy as np
 
 from ..validation import require_covariance, require_int, require_positive, require_shape
 
-__all__ = ["N_STATES", "N_NOISE", "N_STATION_MEAS", "MAX_STATIONS", "OrbitParams"]
+__all__ = ["N_STATES", "N_NOISE", "N_STATION_MEAS", "MAX_STATIONS", "MAX_STEPS", "OrbitParams"]
 
 N_STATES = 4  #: [X, Xdot, Y, Ydot]
 N_NOISE = 2  #: [w1, w2], accelerations
 N_STATION_MEAS = 3  #: [rho, rhodot, phi] of one station
 MAX_STATIONS = 36  #: most stations an OrbitParams may place (every 10 degrees)
+#: most steps an OrbitParams may describe: a filter run keeps about 1 kB per step, a simulation 0.3 kB per
+#: step and run (100,000 steps of 10 s are 11.6 days, over 180 orbits)
+MAX_STEPS = 100_000
 
 
 def _matrix(values):
@@ -47,7 +50,8 @@ class OrbitParams:
     r0 : radius of the nominal circular orbit, km (6678: 300 km altitude)
     RE : radius of the Earth, on which the stations sit, km (6378)
     omegaE : rotation rate of the Earth, rad/s (2 pi / 86400)
-    dt : sampling interval, s (10); n_steps : steps after t_0 (1400: t = 0 ... 14000 s, 1401 samples)
+    dt : sampling interval, s (10); n_steps : steps after t_0 (1400: t = 0 ... 14000 s, 1401 samples; at
+        most :data:`MAX_STEPS`)
     n_stations : stations, equally spaced on the equator (12: station i = 1..12 at angle
         ``omegaE t + (i - 1) 2 pi / n_stations``)
     Qtrue : (2, 2) covariance of the acceleration noise w_k, (km/s^2)^2, held constant over each step
@@ -84,7 +88,10 @@ class OrbitParams:
                 or not math.isfinite(float(omega)) or omega < 0:
             raise ValueError(f"omegaE must be a finite number >= 0 (rad/s), got {omega!r}")
         object.__setattr__(self, "omegaE", float(omega))
-        object.__setattr__(self, "n_steps", require_int("n_steps", self.n_steps, minimum=1))
+        steps = require_int("n_steps", self.n_steps, minimum=1)
+        if steps > MAX_STEPS:
+            raise ValueError(f"n_steps must be an integer in 1..{MAX_STEPS}, got {steps}")
+        object.__setattr__(self, "n_steps", steps)
         stations = require_int("n_stations", self.n_stations, minimum=1)
         if stations > MAX_STATIONS:
             raise ValueError(f"n_stations must be an integer in 1..{MAX_STATIONS}, got {stations}")
