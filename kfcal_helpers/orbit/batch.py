@@ -137,6 +137,13 @@ class _Store:
                            self.x, self.P, self.dof)
 
 
+def _common(s, y, truth, keep):
+    """What every batched filter sets up: params, K, the per-step process noise, the station states (K,
+    n_stations, 4) and the store of the per-run arrays."""
+    p, K = s.params, y.shape[1]
+    return p, K, p.process_noise(s.Q), station_states(p.dt * np.arange(K), p), _Store(len(y), K, truth, keep)
+
+
 def _joseph(P, gain, H, R):
     I_KH = np.eye(N_STATES) - gain @ H
     return I_KH @ P @ mT(I_KH) + gain @ R @ mT(gain)
@@ -179,12 +186,8 @@ def run_ekf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
     """Extended KF on ``y`` (N, K, n_stations, 3), ``truth`` (N, K, 4) optional: filterpy's
     ``ExtendedKalmanFilter`` equations as :class:`~kfcal_helpers.orbit.filters.OrbitEKF` uses them."""
     s, y, truth = _inputs(y, setup, truth)
-    p = s.params
-    n, K = y.shape[:2]
-    Q = p.process_noise(s.Q)
-    stations = station_states(p.dt * np.arange(K), p)
-    out = _Store(n, K, truth, keep_estimates)
-    x, P = np.tile(s.x0, (n, 1)), np.tile(s.P0, (n, 1, 1))  # (x0, P0) of every run
+    p, K, Q, stations, out = _common(s, y, truth, keep_estimates)
+    x, P = np.tile(s.x0, (len(y), 1)), np.tile(s.P0, (len(y), 1, 1))  # (x0, P0) of every run
     for k in range(K):
         if k > 0:
             F = s.F(x)
@@ -212,14 +215,10 @@ def run_ukf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
     ``UnscentedKalmanFilter`` equations as :func:`~kfcal_helpers.orbit.filters.make_ukf` sets them up, on
     (N, 9, 4) sigma points; P symmetrized after every predict and update."""
     s, y, truth = _inputs(y, setup, truth)
-    p = s.params
-    n, K = y.shape[:2]
-    Q = p.process_noise(s.Q)
-    stations = station_states(p.dt * np.arange(K), p)
-    out = _Store(n, K, truth, keep_estimates)
+    p, K, Q, stations, out = _common(s, y, truth, keep_estimates)
     points = MerweScaledSigmaPoints(N_STATES, alpha=s.alpha, beta=s.beta, kappa=s.kappa)
     Wm, Wc = points.Wm, points.Wc
-    x, P = np.tile(s.x0, (n, 1)), np.tile(s.P0, (n, 1, 1))  # (x0, P0) of every run
+    x, P = np.tile(s.x0, (len(y), 1)), np.tile(s.P0, (len(y), 1, 1))
     sigmas_f = None
     for k in range(K):
         slots = _Slots(y[:, k], s.R, stations[k])
