@@ -33,7 +33,7 @@ from scipy import stats
 
 from .validation import MIN_BAND_ALPHA, require_int, require_significance
 
-__all__ = ["chi2_bounds", "t_band", "normal_band", "variance_band", "correlation_band", "uncentred_correlation_band",
+__all__ = ["chi2_bounds", "chi2_sum_bounds", "step_checks", "t_band", "normal_band", "variance_band", "correlation_band", "uncentred_correlation_band",
            "normalized_squares", "nees", "nis", "inside_fraction", "Check", "MonteCarloSummary", "format_checks"]
 
 
@@ -63,6 +63,68 @@ def chi2_bounds(dim: int, n_samples: int, alpha: float = 0.05) -> tuple[float, f
     lower = stats.chi2.ppf(alpha / 2, dof) / n_samples
     upper = stats.chi2.ppf(1 - alpha / 2, dof) / n_samples
     return float(lower), float(upper)
+
+
+def chi2_sum_bounds(dof, n, alpha: float = 0.05):
+    """Two-sided bounds of an average of ``n`` independent chi-square variables whose degrees of freedom
+    add up to ``dof``: ``chi2.ppf(alpha/2, dof) / n`` and ``chi2.ppf(1 - alpha/2, dof) / n``, elementwise.
+
+    dof : array of ints >= 1 (e.g. per step, the sum over the runs of the measurement dimension present);
+    n : array of ints >= 1 broadcast with ``dof`` (how many variables are averaged); alpha as in
+    :func:`chi2_bounds`.  Returns ``(lower, upper)`` arrays (dimensionless).  With a fixed dimension d,
+    ``dof = N d`` and ``n = N`` give :func:`chi2_bounds`.
+    """
+    alpha = require_significance("alpha", alpha, minimum=MIN_BAND_ALPHA)
+    dof, n = np.asarray(dof), np.asarray(n)
+    for name, v in (("dof", dof), ("n", n)):
+        if v.dtype.kind not in "iu" or np.any(v < 1):
+            raise ValueError(f"{name} must hold integers >= 1, got {v!r}")
+    return stats.chi2.ppf(alpha / 2, dof) / n, stats.chi2.ppf(1 - alpha / 2, dof) / n
+
+
+def step_checks(nees, nis, dof, n_states: int, alpha: float = 0.05, extra_entries: int = 0) -> dict:
+    """Per-step NEES and NIS checks of N runs whose measurement dimension changes from step to step.
+
+    nees : (N, K) NEES of a state of ``n_states`` components; nis : (N, K) NIS, NaN where a run had no
+    measurement; dof : (N, K) ints, the NIS's degrees of freedom (the measurement dimension present,
+    0 without one).  At step k the run-averaged NEES is chi-square with ``N n_states`` dof over N; the NIS
+    averaged over the ``n_k`` runs with a measurement is chi-square with ``sum_r dof[r, k]`` dof (the
+    dimensions actually present, which may differ between runs) over ``n_k``; a step where no run has a
+    measurement is left out.  The pointwise band is at ``alpha``, the simultaneous (Bonferroni) one at
+    ``alpha / (entries of both checks + extra_entries)`` (``extra_entries``: those of other checks judged
+    with them).
+
+    Returns ``{"nees": Check, "nis": Check}`` (:class:`Check`; ``expected`` is ``n_states`` and the mean
+    dof per step).
+    """
+    nees, nis = np.asarray(nees, dtype=float), np.asarray(nis, dtype=float)
+    dof = np.asarray(dof)
+    if nees.ndim != 2 or nis.shape != nees.shape or dof.shape != nees.shape:
+        raise ValueError(f"nees, nis and dof must have the same shape (n_runs, K), got {nees.shape}, {nis.shape}, "
+                         f"{dof.shape}")
+    n_states = require_int("n_states", n_states, minimum=1)
+    alpha = require_significance("alpha", alpha)
+    extra_entries = require_int("extra_entries", extra_entries, minimum=0)
+    if dof.dtype.kind not in "iu" or np.any(dof < 0):
+        raise ValueError("dof must hold integers >= 0")
+    present = dof > 0
+    if np.any(np.isfinite(nis) != present) or not np.isfinite(nees).all():
+        raise ValueError("nis must be finite exactly where dof > 0, and nees finite everywhere")
+    n_runs = nees.shape[0]
+    count = present.sum(axis=0)
+    has = count > 0
+    total = dof.sum(axis=0)[has]
+    nis_mean = np.where(present, nis, 0.0).sum(axis=0)[has] / count[has]
+    a_sim = alpha / (nees.shape[1] + int(has.sum()) + extra_entries)
+    out = {}
+    for name, values, d, n, what in (
+            ("nees", nees.mean(axis=0), np.full(nees.shape[1], n_states * n_runs), np.full(nees.shape[1], n_runs),
+             f"run-averaged NEES per step ({n_states} dof per run)"),
+            ("nis", nis_mean, total, count[has], "run-averaged NIS per step (the dof present at each step)")):
+        lo, hi = chi2_sum_bounds(d, n, alpha)
+        slo, shi = chi2_sum_bounds(d, n, a_sim)
+        out[name] = Check(name, what, values, d / n, lo, hi, slo, shi)
+    return out
 
 
 def _level(level) -> float:

@@ -38,15 +38,17 @@ from dataclasses import dataclass
 import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints
 
+from ..batching import BatchArrays
+from ..unscented import batch_sigma_points, gain_solve, mT, unscented_moments
 from ..validation import require_instance
-from .filters import FilterSetup, robust_sqrt
+from .filters import FilterSetup
 from .model import N_MEAS, N_STATES, STATE, arc, jacobian_A, nominal_trajectory
 
 __all__ = ["BatchResult", "run_batch", "run_lkf_batch", "run_ekf_batch", "run_ukf_batch", "batch_sigma_points"]
 
 
 @dataclass(frozen=True, eq=False)
-class BatchResult:
+class BatchResult(BatchArrays):
     """Output of a filter run on N realizations over K samples.
 
     filter : "lkf", "ekf" or "ukf"; t : (K,) s; measurements : the rows of y used (the NIS has
@@ -59,14 +61,6 @@ class BatchResult:
     (``keep_estimates=True``), else None
     """
 
-    filter: str
-    t: np.ndarray
-    nis: np.ndarray
-    sigma2: np.ndarray
-    nees: np.ndarray | None = None
-    errors: np.ndarray | None = None
-    x: np.ndarray | None = None
-    P: np.ndarray | None = None
     measurements: tuple = tuple(range(N_MEAS))
 
 
@@ -141,18 +135,6 @@ def _one_error(run):
     return quiet
 
 
-def _mT(a):
-    return np.swapaxes(a, -1, -2)
-
-
-def _gain(S, cross, nu):
-    """Kalman gains ``K = cross S^-1`` (N, 6, m) and ``S^-1 nu`` (N, m) from one solve with S (N, m, m):
-    ``cross`` (N, 6, m) is ``P H^T`` (EKF) or ``Pxz`` (UKF), ``nu`` (N, m) the innovations.  (filterpy
-    multiplies by ``inv(S)``: the same numbers to rounding, at half the cost for stacks of small S.)"""
-    X = np.linalg.solve(S, np.concatenate([_mT(cross), nu[..., None]], axis=-1))
-    return _mT(X[..., :-1]), X[..., -1]
-
-
 # ---------------------------------------------------------------------------
 # LKF
 @_one_error
@@ -219,17 +201,17 @@ def run_ekf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
         if k > 0:
             F = eye + p.dt * jacobian_A(x, p.u0, p.L)
             x = arc(x, p.u0, p.dt, p.L)
-            P = F @ P @ _mT(F) + Q
+            P = F @ P @ mT(F) + Q
         if has[k]:
             H = model.jacobian(x)
-            PHT = P @ _mT(H)
+            PHT = P @ mT(H)
             S = H @ PHT + R
             z = y[:, k, rows]
             nu = model.residual(z, model.h(x)) if s.wrap_innovations else z - model.h(x)
-            gain, SInu = _gain(S, PHT, nu)
+            gain, SInu = gain_solve(S, PHT, nu)
             x = x + (gain @ nu[..., None])[..., 0]
             I_KH = eye - gain @ H
-            P = I_KH @ P @ _mT(I_KH) + gain @ R @ _mT(gain)
+            P = I_KH @ P @ mT(I_KH) + gain @ R @ mT(gain)
             x = STATE.wrap(x)
             out.innovation(k, nu, SInu)
         out.posterior(k, x, P)
@@ -241,35 +223,6 @@ def run_ekf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
 def _merwe(setup):
     pts = setup.points
     return MerweScaledSigmaPoints(N_STATES, alpha=pts.alpha, beta=pts.beta, kappa=pts.kappa)
-
-
-def batch_sigma_points(x, P, points: MerweScaledSigmaPoints) -> np.ndarray:
-    """Merwe scaled sigma points of N estimates: ``x`` (N, 6), ``P`` (N, 6, 6) -> (N, 13, 6).
-
-    Point 0 is ``x``, points 1..6 are ``x + U_i`` and 7..12 ``x - U_i`` with ``U_i`` the rows of the
-    upper Cholesky factor of the symmetrized ``(n + lambda) P`` (filterpy's ``sigma_points`` with
-    :func:`~kfcal_helpers.coop.filters.robust_sqrt`, whose jitter is used for any run whose plain
-    factorization fails).  ValueError if a covariance is not finite or no jitter helps.
-    """
-    n = points.n
-    lam = points.alpha ** 2 * (n + points.kappa) - n
-    M = (lam + n) * np.asarray(P, dtype=float)
-    if not np.all(np.isfinite(M)):
-        raise ValueError("P: the UKF covariance holds non-finite numbers (the filter diverged)")
-    M = 0.5 * (M + _mT(M))
-    try:
-        U = _mT(np.linalg.cholesky(M))  # upper factor: U^T U = M
-    except np.linalg.LinAlgError:
-        U = np.stack([robust_sqrt(m) for m in M])
-    x = np.asarray(x, dtype=float)[:, None, :]
-    return np.concatenate([x, x + U, x - U], axis=1)
-
-
-def _ut(points, mean, Wm, Wc, residual):
-    """Mean (N, d) and weighted residual covariance (N, d, d) of ``points`` (N, 13, d)."""
-    m = mean(points, Wm)
-    r = residual(points, m[:, None, :])
-    return m, r, _mT(r * Wc[:, None]) @ r
 
 
 @_one_error
@@ -294,23 +247,23 @@ def run_ukf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
     for k in range(K):
         if k > 0:
             sigmas_f = arc(batch_sigma_points(x, P, points), p.u0, p.dt, p.L)
-            x, _, P = _ut(sigmas_f, STATE.mean, Wm, Wc, STATE.residual)
+            x, _, P = unscented_moments(sigmas_f, STATE.mean, Wm, Wc, STATE.residual)
             P = P + Q
             sigmas_f = batch_sigma_points(x, P, points)
-            P = 0.5 * (P + _mT(P))
+            P = 0.5 * (P + mT(P))
         elif has[0]:
             sigmas_f = batch_sigma_points(x, P, points)
         if has[k]:
             sigmas_h = model.h(sigmas_f)
-            zp, dz, S = _ut(sigmas_h, model.mean, Wm, Wc, model.residual)
+            zp, dz, S = unscented_moments(sigmas_h, model.mean, Wm, Wc, model.residual)
             S = S + R
             dxs = STATE.residual(sigmas_f, x[:, None, :])
-            Pxz = _mT(dxs * Wc[:, None]) @ dz
+            Pxz = mT(dxs * Wc[:, None]) @ dz
             nu = model.residual(y[:, k, rows], zp)
-            gain, SInu = _gain(S, Pxz, nu)
+            gain, SInu = gain_solve(S, Pxz, nu)
             x = STATE.add(x, (gain @ nu[..., None])[..., 0])
-            P = P - gain @ S @ _mT(gain)
-            P = 0.5 * (P + _mT(P))
+            P = P - gain @ S @ mT(gain)
+            P = 0.5 * (P + mT(P))
             out.innovation(k, nu, SInu)
         out.posterior(k, x, P)
     return out.result(s, K, has)

@@ -32,11 +32,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter, KalmanFilter, MerweScaledSigmaPoints, UnscentedKalmanFilter
-from scipy.linalg import cholesky
 
 from ..consistency import chi2_bounds as _chi2_bounds
 from ..consistency import nees as _nees
 from ..consistency import nis as _nis
+from ..unscented import VectorizedUKF, robust_sqrt
 from ..validation import require_choice, require_covariance, require_instance, require_positive, require_shape
 from .model import (
     MAX_MEASUREMENT,
@@ -457,49 +457,6 @@ def run_ekf(y, setup: FilterSetup | None = None, truth=None) -> FilterResult:
 
 # ---------------------------------------------------------------------------
 # UKF
-class _CoopUKF(UnscentedKalmanFilter):
-    """filterpy's UKF with f and h evaluated on all 13 sigma points in one vectorised call.
-
-    The filter equations are filterpy's: only the per-sigma-point Python loops over
-    ``fx`` and ``hx`` are replaced by one array call each (same numbers, ~2x faster).
-    """
-
-    def compute_process_sigmas(self, dt, fx=None, **fx_args):
-        fx = self.fx if fx is None else fx
-        self.sigmas_f = fx(self.points_fn.sigma_points(self.x, self.P), dt, **fx_args)
-
-    def update(self, z, R=None, UT=None, hx=None, **hx_args):
-        rows = iter((self.hx if hx is None else hx)(self.sigmas_f, **hx_args))
-        super().update(z, R=R, UT=UT, hx=lambda _sigma: next(rows))
-
-
-def robust_sqrt(M) -> np.ndarray:
-    """Upper Cholesky factor ``U`` (``U^T U = M``) of the symmetrized ``M``, for the sigma points.
-
-    filterpy's UKF updates ``P - K S K^T``, which can lose symmetry and, rarely, positive
-    definiteness by rounding.  This symmetrizes ``M`` and, if the Cholesky factorization still
-    fails, adds a jitter ``eps * I`` with ``eps`` growing from ``1e-12 * trace(M)/n`` by factors of
-    10 (at most 10 tries); ValueError if ``M`` is not finite or no jitter helps.
-    """
-    M = np.asarray(M, dtype=float)
-    if not np.all(np.isfinite(M)):
-        raise ValueError("P: the UKF covariance holds non-finite numbers (the filter diverged)")
-    M = 0.5 * (M + M.T)
-    try:
-        return cholesky(M, lower=False)
-    except np.linalg.LinAlgError:
-        pass
-    n = M.shape[0]
-    eps = 1e-12 * max(float(np.trace(M)) / n, 1e-300)
-    for _ in range(10):
-        try:
-            return cholesky(M + eps * np.eye(n), lower=False)
-        except np.linalg.LinAlgError:
-            eps *= 10.0
-    raise ValueError("P: the UKF covariance is not positive definite, even with a jitter of "
-                     f"{eps / 10:.1e} on its diagonal (the filter diverged)")
-
-
 def make_ukf(setup: FilterSetup) -> UnscentedKalmanFilter:
     """filterpy UnscentedKalmanFilter with the setup's Merwe scaled sigma points, its measurement
     model (h, circular z mean, wrapped residual, R) and the state's angle functions."""
@@ -511,7 +468,7 @@ def make_ukf(setup: FilterSetup) -> UnscentedKalmanFilter:
     def fx(sigmas, dt):  # all sigma points at once, shape (13, 6)
         return arc(sigmas, p.u0, dt, p.L)
 
-    ukf = _CoopUKF(dim_x=N_STATES, dim_z=model.dim, dt=p.dt, hx=model.h, fx=fx, points=points,
+    ukf = VectorizedUKF(dim_x=N_STATES, dim_z=model.dim, dt=p.dt, hx=model.h, fx=fx, points=points,
                    x_mean_fn=STATE.mean, z_mean_fn=model.mean,
                    residual_x=STATE.residual, residual_z=model.residual, state_add=STATE.add)
     ukf.x = setup.x0.copy()

@@ -13,11 +13,11 @@ Every function accepts arrays with leading axes: ``x`` of shape (..., 6),
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..angles import AngleLayout, weighted_mean, wrap_angle, wrap_components
 from ..montecarlo import MEMORY_LIMIT
 from ..validation import require_covariance, require_int, require_positive, require_shape
 
@@ -216,35 +216,9 @@ def require_last_axis(name: str, array, n: int) -> np.ndarray:
 
 # ---------------------------------------------------------------------------
 # Angles
-_TWO_PI = 2.0 * np.pi
 # the angle components as basic slices (much faster than index lists in the filters' inner loops)
 _STATE_ANGLE_SLICE = slice(2, 6, 3)  # STATE_ANGLES
 _MEAS_ANGLE_SLICE = slice(0, 3, 2)  # MEAS_ANGLES
-
-
-def wrap_angle(a):
-    """Wrap angles (rad) to (-pi, pi]; any shape."""
-    return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), _TWO_PI)
-
-
-def _angle_slice(angles) -> slice:
-    """The angle components ``angles`` (sorted indices) as a basic slice (start, stop, step)."""
-    if not angles:
-        return slice(0, 0, 1)
-    step = angles[1] - angles[0] if len(angles) > 1 else 1
-    if any(b - a != step for a, b in zip(angles, angles[1:])):
-        raise ValueError(f"angles must be evenly spaced indices, got {angles}")
-    return slice(angles[0], angles[-1] + 1, step)
-
-
-def _wrap_components(v, sl, copy=True):
-    v = np.array(v, dtype=float) if copy else v
-    if v.ndim == 1:  # one vector (the UKF calls this ~50 times a step): Python floats are faster
-        for i in range(sl.start, sl.stop, sl.step):
-            v[i] = math.pi - (math.pi - float(v[i])) % _TWO_PI
-    elif sl.stop > sl.start:
-        v[..., sl] = np.pi - np.mod(np.pi - v[..., sl], _TWO_PI)
-    return v
 
 
 def wrap_state(x):
@@ -252,85 +226,42 @@ def wrap_state(x):
     x = np.asarray(x, dtype=float)
     if x.ndim < 1 or x.shape[-1] != N_STATES:
         raise ValueError(f"x must have shape (..., {N_STATES}), got {x.shape}")
-    return _wrap_components(x, _STATE_ANGLE_SLICE)
+    return wrap_components(x, _STATE_ANGLE_SLICE)
 
 
 def wrap_measurement(y):
     """Copy of measurements ``y`` (..., 5) with the bearings wrapped to (-pi, pi]."""
-    return _wrap_components(y, _MEAS_ANGLE_SLICE)
+    return wrap_components(y, _MEAS_ANGLE_SLICE)
 
 
 def state_add(x, dx):
     """``x + dx`` for states (..., 6), headings wrapped (the UKF's ``state_add``)."""
-    return _wrap_components(np.add(x, dx, dtype=float), _STATE_ANGLE_SLICE, copy=False)
-
-
-def _weighted_mean(points, weights, sl):
-    """Weighted mean over axis -2 of ``points`` (..., m, n); circular mean for the slice ``sl``."""
-    points = np.asarray(points, dtype=float)
-    w = np.asarray(weights, dtype=float)
-    mean = np.matmul(w, points)
-    a = points[..., sl]
-    mean[..., sl] = np.arctan2(np.matmul(w, np.sin(a)), np.matmul(w, np.cos(a)))
-    return mean
+    return wrap_components(np.add(x, dx, dtype=float), _STATE_ANGLE_SLICE, copy=False)
 
 
 def state_mean(sigmas, weights):
     """Weighted mean of state points (..., m, 6) with weights (m,); headings by circular mean."""
-    return _weighted_mean(sigmas, weights, _STATE_ANGLE_SLICE)
+    return weighted_mean(sigmas, weights, _STATE_ANGLE_SLICE)
 
 
 def measurement_mean(sigmas, weights):
     """Weighted mean of measurement points (..., m, 5); bearings by circular mean."""
-    return _weighted_mean(sigmas, weights, _MEAS_ANGLE_SLICE)
+    return weighted_mean(sigmas, weights, _MEAS_ANGLE_SLICE)
 
 
 def state_residual(a, b):
     """``a - b`` for states (..., 6) with the heading differences wrapped (rad)."""
-    return _wrap_components(np.subtract(a, b, dtype=float), _STATE_ANGLE_SLICE, copy=False)
+    return wrap_components(np.subtract(a, b, dtype=float), _STATE_ANGLE_SLICE, copy=False)
 
 
 def measurement_residual(a, b):
     """``a - b`` for measurements (..., 5) with the bearing differences wrapped (rad)."""
-    return _wrap_components(np.subtract(a, b, dtype=float), _MEAS_ANGLE_SLICE, copy=False)
+    return wrap_components(np.subtract(a, b, dtype=float), _MEAS_ANGLE_SLICE, copy=False)
 
 
-@dataclass(frozen=True, eq=False)
-class StateDescriptor:
-    """The layout of a vector whose components ``angles`` are angles (rad, wrapped to (-pi, pi]):
-    its wrap, its residual ``a - b``, ``x + dx`` and the weighted (circular for the angles) mean of
-    points, as the UKF needs them.  :data:`STATE` describes the coop state.
-
-    n : int -- dimension; angles : sorted tuple of the angle components (evenly spaced);
-    labels : plot labels with units, one per component
-    """
-
-    n: int
-    angles: tuple = ()
-    labels: tuple = ()
-
-    def __post_init__(self):
-        angles = tuple(int(i) for i in self.angles)
-        if angles != tuple(sorted(set(angles))) or any(not 0 <= i < self.n for i in angles):
-            raise ValueError(f"angles must be sorted distinct indices in 0..{self.n - 1}, got {self.angles}")
-        object.__setattr__(self, "angles", angles)
-        object.__setattr__(self, "_slice", _angle_slice(angles))
-
-    def wrap(self, v):
-        """Copy of ``v`` (..., n) with the angle components wrapped to (-pi, pi]."""
-        return _wrap_components(v, self._slice)
-
-    def residual(self, a, b):
-        """``a - b`` (..., n) with the angle differences wrapped."""
-        return _wrap_components(np.subtract(a, b, dtype=float), self._slice, copy=False)
-
-    def add(self, x, dx):
-        """``x + dx`` (..., n) with the angles wrapped (the UKF's ``state_add``)."""
-        return _wrap_components(np.add(x, dx, dtype=float), self._slice, copy=False)
-
-    def mean(self, points, weights):
-        """Weighted mean of ``points`` (..., m, n) with ``weights`` (m,): circular for the angles."""
-        return _weighted_mean(points, weights, self._slice)
+#: the layout of a vector with angle components (its wrap, residual, add and circular mean), shared with
+#: the other problems
+StateDescriptor = AngleLayout
 
 
 #: the coop state [xi_g, eta_g, theta_g, xi_a, eta_a, theta_a]: headings 2 and 5 are angles
@@ -372,7 +303,7 @@ def arc(x, u, dt, L):
         out[..., i] = x[..., i] + d * np.cos(mid)
         out[..., i + 1] = x[..., i + 1] + d * np.sin(mid)
         out[..., i + 2] = mid + half
-    return _wrap_components(out, _STATE_ANGLE_SLICE, copy=False)
+    return wrap_components(out, _STATE_ANGLE_SLICE, copy=False)
 
 
 def step(x, u, dt: float = 0.1, L: float = 0.5):
@@ -428,7 +359,7 @@ def measure(x) -> np.ndarray:
     y[..., 1] = np.sqrt(r2)
     y[..., 2] = bearing + np.pi - x[..., 5]  # atan2(-deta, -dxi) = atan2(deta, dxi) + pi (mod 2 pi)
     y[..., 3:5] = x[..., 3:5]
-    return _wrap_components(y, _MEAS_ANGLE_SLICE, copy=False)
+    return wrap_components(y, _MEAS_ANGLE_SLICE, copy=False)
 
 
 # ---------------------------------------------------------------------------
