@@ -209,6 +209,18 @@ LOG_API_BAD = [
     ("log csv 1 MB Qtrue", lambda t, lg: load_log(lf.folder_with(t, "Qtrue", lambda f: f.write_text("1.0\n" * 300000))),
      r"Qtrue: .*Qtrue.csv is larger than the 0.1 MB"),
     ("log sparse mat", lambda t, lg: load_log(lf.sparse_file(t / "log.mat", 200_000_000)), r"path: .*log.mat is larger than"),
+    ("log csv 8.9 million short lines", lambda t, lg: load_log(lf.folder_with(t, "ydata", lf.short_lines)),
+     r"ydata: .*ydata.csv has 8900000 lines, more than a 5 x K matrix can have \(5 rows\)"),
+    ("log csv tvec of 1.5 million lines", lambda t, lg: load_log(lf.folder_with(t, "tvec", lambda f: lf.short_lines(f, 1_500_000))),
+     r"tvec: .*tvec.csv has 1500000 lines, more than a 1 x K vector can have"),
+    ("log csv one line of 13 million values", lambda t, lg: load_log(lf.folder_with(t, "ydata", lf.one_long_line)),
+     r"ydata: 13000000 steps, more than the 168269 allowed"),
+    ("log csv Qtrue of 7 columns", lambda t, lg: load_log(_folder(t, Qtrue="1,0,0,0,0,0,0\n" * 6)),
+     r"Qtrue: .*Qtrue.csv has a line of 7 values; a 6 x 6 matrix has 6"),
+    ("log csv semicolons", lambda t, lg: load_log(lf.spreadsheet_log(t, bom=False, newline="\n", sep=";")),
+     r"not a numeric CSV \(.*\); it looks semicolon-separated: save it comma-separated"),
+    ("log csv semicolons with a BOM", lambda t, lg: load_log(lf.spreadsheet_log(t, sep=";")),
+     r"it looks semicolon-separated"),
     ("coop params dt 5e-324", lambda t, lg: CoopParams(dt=5e-324), r"duration / dt must be at most 1e\+09 steps, got 100 s / 4.94066e-324 s = inf steps"),
     ("coop params duration 1e300", lambda t, lg: CoopParams(duration=1e300), r"duration / dt must be at most 1e\+09 steps, got 1e\+300 s"),
     ("run_filter too many rows", lambda t, lg: run_filter("ekf", _y(1.0, MAX_STEPS + 1)), r"y: 168270 steps"),
@@ -261,6 +273,17 @@ def test_log_with_rounded_timestamps_is_accepted(times, tmp_path):
     params = lg.params()
     assert params.n_samples == times.size and params.dt == pytest.approx(step, rel=1e-12)
     assert np.isfinite(run_filter("ekf", lg.y, params).x).all()
+
+
+@pytest.mark.parametrize("bom, newline", [(True, "\r\n"), (True, "\n"), (False, "\r\n"), (False, "\r")],
+                         ids=["BOM CRLF", "BOM LF", "CRLF", "CR"])
+def test_log_saved_by_a_spreadsheet_is_read(bom, newline, tmp_path):
+    """A log re-saved by a spreadsheet (a UTF-8 byte-order mark, CRLF or CR line ends) reads as the original."""
+    want = load_log(lf.log_folder(tmp_path / "plain"))
+    got = load_log(lf.spreadsheet_log(tmp_path / "sheet", bom=bom, newline=newline))
+    assert (tmp_path / "sheet" / "log" / "ydata.csv").read_bytes().startswith(b"\xef\xbb\xbf") == bom
+    for name in ("t", "y", "Qtrue", "Rtrue"):
+        assert np.array_equal(getattr(got, name), getattr(want, name), equal_nan=True), name
 
 
 def test_mat_bomb_is_refused_unread(tmp_path):

@@ -981,3 +981,68 @@ def test_memory_error_on_a_log_blames_the_log(tmp_path, capsys, monkeypatch):
     assert code == 2 and out == ""
     _one_error_line(err, "coop")
     assert "not enough memory" in err and "shorter log" in err and "realizations" not in err
+
+
+# --- the course-log reader's bounds on lines and values (inputs) ---
+LOG_SHAPE_BAD = [
+    ("8.9 million short lines", lambda t: lf.folder_with(t, "ydata", lf.short_lines),
+     ["ydata", "has 8900000 lines", "5 x K matrix"]),
+    ("one line of 13 million values", lambda t: lf.folder_with(t, "ydata", lf.one_long_line),
+     ["ydata: 13000000 steps", "168269 allowed"]),
+    ("semicolon-separated", lambda t: lf.spreadsheet_log(t, sep=";"), ["ydata", "semicolon-separated", "comma"]),
+]
+
+#: a child process: the command line on argv, then its own peak resident memory (VmHWM, bytes) on stderr
+_PEAK_CHILD = ("import sys; from kfcal_helpers.cli import main; code = main(sys.argv[1:]); "
+               "print([int(l.split()[1]) * 1024 for l in open('/proc/self/status') if l.startswith('VmHWM')][0], "
+               "file=sys.stderr); sys.exit(code)")
+
+
+@pytest.mark.parametrize("build, words", [r[1:] for r in LOG_SHAPE_BAD], ids=[r[0] for r in LOG_SHAPE_BAD])
+def test_log_of_the_wrong_shape_one_line_exit_2(build, words, tmp_path, capsys, monkeypatch):
+    """A log file of millions of short lines, of one line of millions of values, or separated by semicolons:
+    one line naming the file's variable, exit 2, before any filter runs."""
+    monkeypatch.setattr(coop_cli, "run_filter", lambda *a, **k: pytest.fail("a filter ran"))
+    code, out, err = _run(["coop", "--log", str(build(tmp_path))], capsys)
+    assert code == 2 and out == "", err
+    _one_error_line(err, "coop")
+    for word in words:
+        assert word in err, (word, err)
+
+
+def test_log_saved_by_a_spreadsheet_runs(tmp_path, capsys):
+    """A log with a UTF-8 byte-order mark and CRLF line ends gives the numbers of the plain log."""
+    plain = _run(["coop", "--log", str(lf.log_folder(tmp_path / "a")), "--json"], capsys)
+    sheet = _run(["coop", "--log", str(lf.spreadsheet_log(tmp_path / "b")), "--json"], capsys)
+    assert plain[0] == sheet[0] == 0 and sheet[2] == ""
+    a, b = json.loads(plain[1]), json.loads(sheet[1])
+    assert a["nis_time_average"] == b["nis_time_average"] and a["steps"] == b["steps"]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="VmHWM is read from /proc (Linux)")
+@pytest.mark.parametrize("build, words", [r[1:] for r in LOG_SHAPE_BAD[:2]], ids=[r[0] for r in LOG_SHAPE_BAD[:2]])
+def test_refused_log_peak_memory_of_a_child(build, words, tmp_path):
+    """The 27 MB file of 8.9 million short lines (which peaked at 883 MB before it was refused) and the
+    one-line file of 13 million values: a child process, SIGINT at its default, refuses them (exit 2,
+    one line) with a peak resident memory (VmHWM) within the 500 MB promise, and within 100 MB of what
+    the interpreter and its imports take on a valid small log."""
+    env = {**ENV, "KFCAL_WORKERS": "2"}
+
+    def child(folder):
+        r = subprocess.run([sys.executable, "-c", _PEAK_CHILD, "coop", "--log", str(folder)], capture_output=True,
+                           text=True, env=env, timeout=300, preexec_fn=_sigint_default)
+        *lines, peak = r.stderr.strip().splitlines()
+        return r.returncode, lines, int(peak)
+
+    code, lines, peak = child(build(tmp_path / "bad"))
+    base_code, _, base = child(lf.log_folder(tmp_path / "good"))
+    assert base_code == 0
+    assert peak <= MEMORY_LIMIT and peak - base < 100e6, (peak / 1e6, base / 1e6)
+    assert code == 2 and len(lines) == 1, lines
+    for word in words:
+        assert word in lines[0], (word, lines)
+
+
+def _sigint_default():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)

@@ -245,15 +245,53 @@ def _read_csv(name: str, f: Path, argname: str) -> np.ndarray:
     except UnicodeDecodeError:
         raise ValueError(f"{name}: {f} is not a numeric CSV (not text)") from None
     del data
+    if text.startswith("\ufeff"):  # the byte-order mark a spreadsheet writes at the start of a UTF-8 file
+        text = text[1:]
     if not text.strip():
         raise ValueError(f"{name}: {f} is empty")
+    lines = _bounded_lines(name, f, text)
+    del text
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return np.loadtxt(text.splitlines(), delimiter=",", ndmin=2)
+            return np.loadtxt(lines, delimiter=",", ndmin=2)
     except ValueError as exc:
         reason = " ".join(str(exc).split())
-        raise ValueError(f"{name}: {f} is not a numeric CSV ({reason})") from None
+        reason = reason if len(reason) <= 200 else reason[:197] + "..."  # loadtxt quotes the whole bad value
+        hint = ""
+        if any(";" in line for line in lines[:10]):
+            hint = "; it looks semicolon-separated: save it comma-separated, with '.' as the decimal point"
+        raise ValueError(f"{name}: {f} is not a numeric CSV ({reason}){hint}") from None
+
+
+#: the rows each CSV may hold (tvec: one row of K times, or one column of them), and the blank or comment
+#: lines allowed beside them
+_CSV_ROWS = {"ydata": N_MEAS, "tvec": MAX_STEPS, "Qtrue": N_STATES, "Rtrue": N_MEAS}
+_CSV_SPARE_LINES = 100
+#: the values one line may hold (one row of ydata or tvec holds at most MAX_STEPS)
+_CSV_FIELDS = {"ydata": MAX_STEPS, "tvec": MAX_STEPS, "Qtrue": N_STATES, "Rtrue": N_MEAS}
+
+
+def _bounded_lines(name: str, f: Path, text: str) -> list:
+    """The lines of a CSV's ``text``, after counting its lines and each line's fields against the
+    shape the variable may have, so that a file of millions of short lines (or one line of millions of
+    values) is refused before it is split or parsed (a parsed value costs about 30 times its bytes)."""
+    rows = _CSV_ROWS[name]
+    if "\r" in text:  # CRLF (a spreadsheet's) or CR line ends
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    # only these end a line (str.splitlines would split on form feeds too); the last may lack its "\n"
+    n_lines = text.count("\n") + (not text.endswith("\n"))
+    shape = "a 1 x K vector" if name == "tvec" else ("a 5 x K matrix" if name == "ydata" else
+                                                      f"a {rows} x {rows} matrix")
+    if n_lines > rows + _CSV_SPARE_LINES:
+        raise ValueError(f"{name}: {f} has {n_lines} lines, more than {shape} can have "
+                         f"({rows} rows{' of times' if name == 'tvec' else ''})")
+    lines = text.split("\n")
+    most = max(line.count(",") + 1 for line in lines)
+    if most > _CSV_FIELDS[name]:
+        raise ValueError(too_many_steps(name, most) if name in ("ydata", "tvec") else
+                         f"{name}: {f} has a line of {most} values; {shape} has {rows}")
+    return lines
 
 
 #: MATLAB classes (as scipy.io.whosmat names them) that hold numbers, and how the others are named
