@@ -18,6 +18,7 @@ __all__ = [
     "require_int",
     "require_choice",
     "require_shape",
+    "require_array",
     "require_covariance",
     "require_seed",
     "require_instance",
@@ -81,12 +82,27 @@ def require_choice(name: str, value, choices) -> str:
     return value
 
 
+def require_array(name: str, value) -> np.ndarray:
+    """Return ``value`` as a float ndarray (any shape, NaN allowed); raise naming ``name`` for what is not
+    numbers (None, text, an object) or does not fit a float (an int of 10**400)."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be an array of real numbers, got {_describe(value)}") from None
+
+
+def _describe(value) -> str:
+    """A short description of ``value`` for messages (never a long repr)."""
+    text = repr(value)
+    return text if len(text) <= 40 else f"a {type(value).__name__}"
+
+
 def require_shape(name: str, array, shape: tuple) -> np.ndarray:
     """Return ``array`` as a float ndarray; raise unless its shape matches.
 
     ``shape`` may hold ``None`` for an axis of any length.
     """
-    arr = np.asarray(array, dtype=float)
+    arr = require_array(name, array)
     ok = arr.ndim == len(shape) and all(s is None or s == n for s, n in zip(shape, arr.shape))
     if not ok:
         want = "(" + ", ".join("any" if s is None else str(s) for s in shape) + ")"
@@ -94,10 +110,11 @@ def require_shape(name: str, array, shape: tuple) -> np.ndarray:
     return arr
 
 
-def require_covariance(name: str, matrix, n: int | None = None) -> np.ndarray:
+def require_covariance(name: str, matrix, n: int | None = None, max_variance: float | None = None) -> np.ndarray:
     """Return ``matrix`` as a float array; raise unless it is a finite, symmetric,
-    positive-definite square matrix (of size ``n`` when given)."""
-    arr = np.asarray(matrix, dtype=float)
+    positive-definite square matrix (of size ``n`` when given), whose variances (diagonal) are at most
+    ``max_variance`` when given."""
+    arr = require_array(name, matrix)
     if arr.ndim != 2 or arr.shape[0] != arr.shape[1] or (n is not None and arr.shape[0] != n):
         size = f"{n}x{n}" if n is not None else "square"
         raise ValueError(f"{name} must be a {size} matrix, got shape {arr.shape}")
@@ -105,6 +122,9 @@ def require_covariance(name: str, matrix, n: int | None = None) -> np.ndarray:
         raise ValueError(f"{name} must hold only finite numbers")
     if not np.allclose(arr, arr.T, rtol=1e-10, atol=1e-12 * max(1.0, float(np.abs(arr).max()))):
         raise ValueError(f"{name} must be symmetric")
+    if max_variance is not None and np.diag(arr).max() > max_variance:
+        raise ValueError(f"{name} variances must be at most {max_variance:g} (a standard deviation of "
+                         f"{math.sqrt(max_variance):g}), got {np.diag(arr).max():.3g}")
     try:
         np.linalg.cholesky(arr)
     except np.linalg.LinAlgError:

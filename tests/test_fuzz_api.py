@@ -177,6 +177,10 @@ def _y(value, rows=5):
     return y
 
 
+def _eye_csv(n, value):
+    return "".join(",".join(repr(value) if i == j else "0" for j in range(n)) + "\n" for i in range(n))
+
+
 def _long(name):
     return "a" * 256 + name
 
@@ -217,6 +221,19 @@ LOG_API_BAD = [
      r"ydata: 13000000 steps, more than the 168269 allowed"),
     ("log csv Qtrue of 7 columns", lambda t, lg: load_log(_folder(t, Qtrue="1,0,0,0,0,0,0\n" * 6)),
      r"Qtrue: .*Qtrue.csv has a line of 7 values; a 6 x 6 matrix has 6"),
+    # arguments and messages (inputs): a NaN time, absurd noise covariances, a thinning that keeps nothing
+    ("log NaN in tvec", lambda t, lg: load_log(lf.retimed_log(t, np.r_[np.nan, 0.1 * np.arange(1, 11)])),
+     r"tvec must hold only finite times, got nan at column 0"),
+    ("log inf in tvec", lambda t, lg: load_log(lf.retimed_log(t, np.r_[0.1 * np.arange(10), np.inf])),
+     r"tvec must hold only finite times, got inf at column 10"),
+    ("log Qtrue 1e300 I", lambda t, lg: load_log(_folder(t, Qtrue=_eye_csv(6, 1e300))),
+     r"Qtrue variances must be at most 1e\+12 \(a standard deviation of 1e\+06\), got 1e\+300"),
+    ("log Rtrue 1e20 I", lambda t, lg: load_log(_folder(t, Rtrue=_eye_csv(5, 1e20))), r"Rtrue variances must be at most 1e\+12"),
+    ("coop params Qtrue 1e300 I", lambda t, lg: CoopParams(Qtrue=1e300 * np.eye(6)), r"Qtrue variances must be at most"),
+    ("log every keeps nothing", lambda t, lg: lg.every(100000), r"m must be at most 10 \(the log has 11 steps\), got 100000"),
+    ("fit_q_scale no measurement", lambda t, lg: fit_q_scale("ekf", np.full((11, 5), np.nan), (1.0,),
+                                                            CoopParams(duration=1.0)),
+     r"y holds no measurement \(every row is NaN\)"),
     ("log csv semicolons", lambda t, lg: load_log(lf.spreadsheet_log(t, bom=False, newline="\n", sep=";")),
      r"not a numeric CSV \(.*\); it looks semicolon-separated: save it comma-separated"),
     ("log csv semicolons with a BOM", lambda t, lg: load_log(lf.spreadsheet_log(t, sep=";")),

@@ -65,6 +65,12 @@ def _huge(root):
     return _log_folder(root, ydata=_ydata_text(y))
 
 
+def _every_fifth_missing():
+    y = simulate(CoopParams(duration=2.0), seed=1).log().y.T.copy()
+    y[:, ::5] = np.nan
+    return y
+
+
 def _all_nan(root):
     return _log_folder(root, ydata=_ydata_text(np.full((5, 21), np.nan)))
 
@@ -142,7 +148,10 @@ BAD = [
     (["coop", "--runs", "2", "--log", "{tmp}"], ["--runs"]),
     (["coop", "--every", "0"], ["--every"]),
     (["coop", "--every", "x"], ["--every"]),
-    (["coop", "--every", "100000"], ["measurement"]),
+    (["coop", "--every", "100000"], ["--every", "at most 1000", "has 1001 steps"]),
+    (["coop", "--every", "1001"], ["--every", "at most 1000"]),
+    (["calibrate", "--runs", "3", "--outage", "0.01:0.02"], ["--outage", "0.01:0.02 s removes no GPS fix"]),
+    (["calibrate", "--runs", "3", "--outage", "5:10", "--outage", "10.1:10.15"], ["--outage", "10.1:10.15 s removes no"]),
     (["coop", "--alpha", "0"], ["--alpha"]),
     (["coop", "--alpha", "1"], ["--alpha"]),
     (["coop", "--alpha", "nan"], ["--alpha"]),
@@ -941,6 +950,17 @@ LOG_READER_BAD = [
     ("256-char log name", lambda t: t / ("a" * 256), [], ["--log", "cannot read"]),
     ("alpha 1e-300", lf.log_folder, ["--alpha", "1e-300"], ["--alpha", "[1e-06, 0.5]"]),
     ("alpha 1e-7 runs", None, ["--runs", "2", "--alpha", "1e-7"], ["--alpha", "[1e-06, 0.5]"]),
+    # arguments and messages (inputs)
+    ("every 100000 runs", None, ["--runs", "3", "--every", "100000"], ["--every", "at most 1000"]),
+    ("every 2000 q-scale auto", lf.log_folder, ["--every", "2000", "--q-scale", "auto"],
+     ["--every", "at most 10 (the log has 11 steps"]),
+    ("every keeps only NaN rows", lambda t: _log_folder(t, ydata=_ydata_text(_every_fifth_missing())), ["--every", "5"],
+     ["--every 5 keeps no measurement of this log"]),
+    ("NaN in tvec", lambda t: lf.retimed_log(t, np.r_[0.1 * np.arange(10), np.nan]),
+     [], ["tvec must hold only finite times", "nan at column 10"]),
+    ("Qtrue 1e300 I", lambda t: (lambda f: ((f / "Qtrue.csv").write_text(
+        "".join(",".join("1e300" if i == j else "0" for j in range(6)) + "\n" for i in range(6))), f)[1])(
+        lf.log_folder(t)), [], ["Qtrue variances must be at most 1e+12"]),
 ]
 
 

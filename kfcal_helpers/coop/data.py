@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ..validation import require_covariance, require_instance, require_int
-from .model import MAX_MEASUREMENT, MAX_STEPS, N_MEAS, N_STATES, CoopParams, too_many_steps
+from .model import MAX_MEASUREMENT, MAX_STEPS, MAX_VARIANCE, N_MEAS, N_STATES, CoopParams, too_many_steps
 
 __all__ = ["LOG_VARIABLES", "CoopLog", "load_log", "write_log_csv", "write_log_mat", "MAX_FILE_BYTES",
            "MAX_MEASUREMENT"]
@@ -84,8 +84,11 @@ class CoopLog:
     def __post_init__(self):
         t = np.asarray(self.t, dtype=float)
         y = np.asarray(self.y, dtype=float)
-        if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)):
-            raise ValueError(f"tvec must be a finite 1 x K vector with K >= 2, got shape {t.shape}")
+        if t.ndim != 1 or t.size < 2:
+            raise ValueError(f"tvec must be a 1 x K vector with K >= 2, got shape {t.shape}")
+        if not np.all(np.isfinite(t)):
+            k = int(np.flatnonzero(~np.isfinite(t))[0])
+            raise ValueError(f"tvec must hold only finite times, got {t[k]} at column {k}")
         if y.shape != (t.size, N_MEAS):
             raise ValueError(f"ydata must have shape (5, {t.size}) to match tvec, got {y.T.shape}")
         if t.size > MAX_STEPS:
@@ -107,8 +110,8 @@ class CoopLog:
             raise ValueError(f"ydata columns must be all finite or all NaN; column {int(np.flatnonzero(bad | np.isinf(y).any(axis=1))[0])} is not")
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "y", y)
-        object.__setattr__(self, "Qtrue", require_covariance("Qtrue", self.Qtrue, N_STATES))
-        object.__setattr__(self, "Rtrue", require_covariance("Rtrue", self.Rtrue, N_MEAS))
+        object.__setattr__(self, "Qtrue", require_covariance("Qtrue", self.Qtrue, N_STATES, MAX_VARIANCE))
+        object.__setattr__(self, "Rtrue", require_covariance("Rtrue", self.Rtrue, N_MEAS, MAX_VARIANCE))
         if self.truth is not None:
             truth = np.asarray(self.truth, dtype=float)
             if truth.shape != (t.size, N_STATES):
@@ -132,6 +135,8 @@ class CoopLog:
     def every(self, m: int) -> "CoopLog":
         """A copy that keeps the measurements of every ``m``-th step (k = 0, m, 2m, ...), NaN elsewhere."""
         m = require_int("m", m, minimum=1)
+        if m > self.n_samples - 1:
+            raise ValueError(f"m must be at most {self.n_samples - 1} (the log has {self.n_samples} steps), got {m}")
         y = np.full_like(self.y, np.nan)
         y[::m] = self.y[::m]
         return CoopLog(self.t, y, self.Qtrue, self.Rtrue, self.truth, f"{self.source} (every {m})")

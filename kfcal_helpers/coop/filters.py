@@ -37,7 +37,8 @@ from scipy.linalg import cholesky
 from ..consistency import chi2_bounds as _chi2_bounds
 from ..consistency import nees as _nees
 from ..consistency import nis as _nis
-from ..validation import require_choice, require_covariance, require_instance, require_positive, require_shape
+from ..validation import (require_array, require_choice, require_covariance, require_instance, require_positive,
+                          require_shape)
 from .model import (
     MAX_MEASUREMENT,
     MAX_STEPS,
@@ -635,6 +636,8 @@ def fit_q_scale(filter: str, y, scales, params: CoopParams | None = None, *, alp
     scales = np.array([require_positive("scales", s) for s in np.atleast_1d(scales)], dtype=float)
     if scales.size == 0:
         raise ValueError("scales must hold at least one value")
+    if not np.isfinite(require_array("y", y)).any():
+        raise ValueError("y holds no measurement (every row is NaN)")
     ll, nis = np.empty(scales.size), np.empty(scales.size)
     for i, s in enumerate(scales):  # one run in memory at a time
         r = run_filter(filter, y, p, Q=s * p.Qtrue, **settings)

@@ -82,6 +82,9 @@ NOISE_MODELS = ("dt", "identity")
 
 #: largest magnitude accepted in measurements (m, rad): beyond it the filters' squares overflow
 MAX_MEASUREMENT = 1e6
+#: largest variance accepted in Qtrue and Rtrue (a standard deviation of MAX_MEASUREMENT): beyond it the NIS
+#: of any log is a vanishing number (1e300 * I gave 1e-296), not a test
+MAX_VARIANCE = MAX_MEASUREMENT ** 2
 
 #: bytes one filter run keeps per step (float64 counts): the stored x_prior, x_post (6 + 6), P_prior,
 #: P_post (36 + 36), z_pred, y (5 + 5), S (25) and K (30); the result's NIS, NEES, t and the copies of
@@ -166,8 +169,8 @@ class CoopParams:
         arrays = {
             "x0": require_shape("x0", self.x0, (N_STATES,)),
             "u0": require_shape("u0", self.u0, (4,)),
-            "Qtrue": require_covariance("Qtrue", self.Qtrue, N_STATES),
-            "Rtrue": require_covariance("Rtrue", self.Rtrue, N_MEAS),
+            "Qtrue": require_covariance("Qtrue", self.Qtrue, N_STATES, MAX_VARIANCE),
+            "Rtrue": require_covariance("Rtrue", self.Rtrue, N_MEAS, MAX_VARIANCE),
             "P0": require_covariance("P0", self.P0, N_STATES),
         }
         for name in ("x0", "u0"):
