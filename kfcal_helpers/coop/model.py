@@ -19,7 +19,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..montecarlo import MEMORY_LIMIT
-from ..validation import require_covariance, require_int, require_positive, require_shape
+from functools import partial
+
+from ..validation import (checked, optional, require_array, require_covariance, require_finite_array, require_instance, require_int,
+                          require_positive, require_shape)
 
 __all__ = [
     "N_STATES",
@@ -209,13 +212,36 @@ class CoopParams:
 
 def require_last_axis(name: str, array, n: int) -> np.ndarray:
     """Return ``array`` as a float ndarray; raise unless its shape is (..., n) with finite entries."""
-    arr = np.asarray(array, dtype=float)
+    arr = require_array(name, array)
     if arr.ndim < 1 or arr.shape[-1] != n:
         raise ValueError(f"{name} must have shape (..., {n}), got {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must hold only finite numbers")
     return arr
 
+
+#: argument checks of the public functions (validation.checked): states (..., 6), measurements (..., 5),
+#: controls (..., 4), sigma points (..., m, 6) or (..., m, 5) and their weights (m,), finite numbers
+_STATES = partial(require_finite_array, shape=(..., 6))
+_MEASUREMENTS = partial(require_finite_array, shape=(..., 5))
+_CONTROLS = partial(require_finite_array, shape=(..., 4))
+_STATE_POINTS = partial(require_finite_array, shape=(..., None, 6))
+_MEASUREMENT_POINTS = partial(require_finite_array, shape=(..., None, 5))
+_WEIGHTS = partial(require_finite_array, shape=(None,))
+_ANGLES = require_finite_array
+#: elementwise arithmetic (wrapping, residuals, sums) lets NaN through as NaN: a missing value stays missing
+_STATES_OR_NAN = partial(require_finite_array, shape=(..., 6), allow_nan=True)
+_ANGLES_OR_NAN = require_array
+
+
+def _leading_measurements(name, value):
+    """Measurements (..., m), the first m <= 5 components (a residual of bearings and range alone is one)."""
+    arr = require_array(name, value)
+    if arr.ndim < 1 or not 1 <= arr.shape[-1] <= N_MEAS:
+        raise ValueError(f"{name} must have shape (..., m) with 1 <= m <= {N_MEAS} (the first m measurements), "
+                         f"got {arr.shape}")
+    return arr
+_MATRICES = partial(require_finite_array, shape=(..., None, None))
 
 # ---------------------------------------------------------------------------
 # Angles
@@ -225,6 +251,7 @@ _STATE_ANGLE_SLICE = slice(2, 6, 3)  # STATE_ANGLES
 _MEAS_ANGLE_SLICE = slice(0, 3, 2)  # MEAS_ANGLES
 
 
+@checked(a=_ANGLES_OR_NAN)
 def wrap_angle(a):
     """Wrap angles (rad) to (-pi, pi]; any shape."""
     return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), _TWO_PI)
@@ -250,6 +277,7 @@ def _wrap_components(v, sl, copy=True):
     return v
 
 
+@checked(x=_STATES_OR_NAN)
 def wrap_state(x):
     """Copy of states ``x`` (..., 6) with the headings wrapped to (-pi, pi]; ValueError for another shape."""
     x = np.asarray(x, dtype=float)
@@ -258,11 +286,13 @@ def wrap_state(x):
     return _wrap_components(x, _STATE_ANGLE_SLICE)
 
 
+@checked(y=partial(require_finite_array, shape=(..., 5), allow_nan=True))
 def wrap_measurement(y):
     """Copy of measurements ``y`` (..., 5) with the bearings wrapped to (-pi, pi]."""
     return _wrap_components(y, _MEAS_ANGLE_SLICE)
 
 
+@checked(x=_STATES_OR_NAN, dx=_STATES_OR_NAN)
 def state_add(x, dx):
     """``x + dx`` for states (..., 6), headings wrapped (the UKF's ``state_add``)."""
     return _wrap_components(np.add(x, dx, dtype=float), _STATE_ANGLE_SLICE, copy=False)
@@ -278,21 +308,25 @@ def _weighted_mean(points, weights, sl):
     return mean
 
 
+@checked(sigmas=_STATE_POINTS, weights=_WEIGHTS)
 def state_mean(sigmas, weights):
     """Weighted mean of state points (..., m, 6) with weights (m,); headings by circular mean."""
     return _weighted_mean(sigmas, weights, _STATE_ANGLE_SLICE)
 
 
+@checked(sigmas=_MEASUREMENT_POINTS, weights=_WEIGHTS)
 def measurement_mean(sigmas, weights):
     """Weighted mean of measurement points (..., m, 5); bearings by circular mean."""
     return _weighted_mean(sigmas, weights, _MEAS_ANGLE_SLICE)
 
 
+@checked(a=_STATES_OR_NAN, b=_STATES_OR_NAN)
 def state_residual(a, b):
     """``a - b`` for states (..., 6) with the heading differences wrapped (rad)."""
     return _wrap_components(np.subtract(a, b, dtype=float), _STATE_ANGLE_SLICE, copy=False)
 
 
+@checked(a=_leading_measurements, b=_leading_measurements)
 def measurement_residual(a, b):
     """``a - b`` for measurements (..., 5) with the bearing differences wrapped (rad)."""
     return _wrap_components(np.subtract(a, b, dtype=float), _MEAS_ANGLE_SLICE, copy=False)
@@ -359,6 +393,7 @@ def dynamics(x, u, L: float = 0.5):
                                         va * np.cos(x[..., 5]), va * np.sin(x[..., 5]), wa), axis=-1)
 
 
+@checked(x=_STATES, u=_CONTROLS, dt=require_finite_array, L=require_positive)
 def arc(x, u, dt, L):
     """Closed-form flow of f over ``dt`` (s, scalar or array broadcast with x's leading axes), without
     checks: ``x`` (..., 6) and ``u`` (..., 4) float arrays, ``L > 0`` (the fast core of :func:`step`)."""
@@ -398,13 +433,14 @@ def step(x, u, dt: float = 0.1, L: float = 0.5):
                 require_positive("dt", dt), require_positive("L", L))
 
 
+@checked(params=optional(partial(require_instance, cls=CoopParams)))
 def nominal_trajectory(params: CoopParams | None = None, n_samples: int | None = None) -> np.ndarray:
     """Nominal states at t_k = k dt from the closed-form arcs (no integration), shape (K, 6).
 
     ``K = params.n_samples`` unless ``n_samples`` is given.
     """
     p = params if params is not None else CoopParams()
-    K = p.n_samples if n_samples is None else require_int("n_samples", n_samples, minimum=1)
+    K = p.n_samples if n_samples is None else require_int("n_samples", n_samples, minimum=1, maximum=MAX_STEPS)
     t = p.dt * np.arange(K)
     out = arc(np.broadcast_to(p.x0, (t.size, N_STATES)), p.u0, t, p.L)
     out[0] = wrap_state(p.x0)
@@ -422,6 +458,7 @@ def _relative(x):
     return x, dxi, deta, r2
 
 
+@checked(x=_STATES)
 def measure(x) -> np.ndarray:
     """Noise-free measurement ``h(x)``, shape (..., 5): rad, m, rad, m, m (bearings wrapped)."""
     x, dxi, deta, r2 = _relative(x)
@@ -436,6 +473,7 @@ def measure(x) -> np.ndarray:
 
 # ---------------------------------------------------------------------------
 # Jacobians
+@checked(x=_STATES, u=_CONTROLS, L=require_positive)
 def jacobian_A(x, u, L: float = 0.5) -> np.ndarray:
     """CT state Jacobian ``A = df/dx`` at (x, u), shape (..., 6, 6) (1/s and m/(s rad))."""
     x = np.asarray(x, dtype=float)
@@ -448,6 +486,7 @@ def jacobian_A(x, u, L: float = 0.5) -> np.ndarray:
     return A
 
 
+@checked(x=_STATES, u=_CONTROLS, L=require_positive)
 def jacobian_B(x, u, L: float = 0.5) -> np.ndarray:
     """CT input Jacobian ``B = df/du`` at (x, u), shape (..., 6, 4)."""
     x = np.asarray(x, dtype=float)
@@ -602,13 +641,18 @@ def jacobian_step(x, u, dt: float = 0.1, L: float = 0.5) -> np.ndarray:
     return J
 
 
+@checked(A=partial(require_finite_array, shape=(N_STATES, N_STATES)),
+         B=partial(require_finite_array, shape=(N_STATES, 4)),
+         C=partial(require_finite_array, shape=(None, N_STATES)), dt=require_positive)
 def discretize(A, B, C, dt: float = 0.1):
-    """DT matrices ``F = I + dt A``, ``G = dt B``, ``H = C`` (A^2 = 0 for this model, so F = expm(A dt))."""
+    """DT matrices ``F = I + dt A``, ``G = dt B``, ``H = C`` (A^2 = 0 for this model, so F = expm(A dt)):
+    A (6, 6), B (6, 4), C (m, 6) finite."""
     dt = require_positive("dt", dt)
     A = np.asarray(A, dtype=float)
     return np.eye(A.shape[-1]) + dt * A, dt * np.asarray(B, dtype=float), np.asarray(C, dtype=float)
 
 
+@checked(F=_MATRICES, H=_MATRICES)
 def observability_matrix(F, H) -> np.ndarray:
     """Stacked observability matrix of a time-varying model over a window of m steps.
 
