@@ -1,4 +1,4 @@
-"""Every exported function of ``kfcal_helpers.calibration`` and ``kfcal_helpers.coop`` and of the shared
+"""Every exported function (and parameter class) of ``kfcal_helpers.calibration`` and ``kfcal_helpers.coop`` and of the shared
 numeric modules ``kfcal_helpers.consistency`` and ``kfcal_helpers.montecarlo``, called with each argument in
 turn replaced by ``None``, NaN, an int of 10**400 and an array of a wrong shape: it raises ``ValueError`` or
 ``TypeError`` whose one-line message names the argument (never ``AttributeError``, ``IndexError``,
@@ -104,6 +104,8 @@ VALID = {
     "format_matrix": lambda: dict(matrix=np.eye(2), digits=3),
     "format_number": lambda: dict(value=1.5, digits=3),
     "format_table": lambda: dict(rows=[[1.0, 2.0]], headers=["a", "b"], digits=3),
+    "CalibrationParams": lambda: dict(),
+    "CoopParams": lambda: dict(),
     # consistency
     "chi2_bounds": lambda: dict(dim=2, n_samples=10, alpha=0.05),
     "t_band": lambda: dict(sd=1.0, n=10, level=0.05),
@@ -149,13 +151,17 @@ ALSO_VALID = {("run_monte_carlo", "seed"): {"None"}, ("truth_model_test", "seed"
 BAD_VALUES = {"None": None, "NaN": float("nan"), "10**400": 10**400, "wrong shape": np.zeros((2, 3, 7))}
 
 
+#: the problems' parameter classes: every field is fuzzed from the defaults
+PARAMS_CLASSES = (CalibrationParams, CoopParams)
+
+
 def _exported():
     out = []
     for module, names in ((calibration, calibration.__all__), (coop, coop.__all__),
                           (consistency, consistency.__all__), (montecarlo, montecarlo.__all__)):
         for name in names:
             obj = getattr(module, name)
-            if inspect.isfunction(obj) and not name.startswith("check_"):
+            if (inspect.isfunction(obj) and not name.startswith("check_")) or obj in PARAMS_CLASSES:
                 out.append((module.__name__.split(".")[-1], name, obj))
     return out
 

@@ -21,7 +21,7 @@ import numpy as np
 from ..montecarlo import MEMORY_LIMIT
 from functools import partial
 
-from ..validation import (checked, optional, require_array, require_covariance, require_finite_array, require_instance, require_int,
+from ..validation import (checked, optional, require_array, require_choice, require_covariance, require_finite_array, require_instance, require_int,
                           require_positive, require_shape)
 
 __all__ = [
@@ -158,9 +158,7 @@ class CoopParams:
     noise_model: str = "dt"  #: how w_k enters the state: "dt" (Omega = dt I) or "identity" (Omega = I)
 
     def __post_init__(self):
-        if self.noise_model not in NOISE_MODELS:
-            raise ValueError(f"noise_model must be one of {', '.join(repr(m) for m in NOISE_MODELS)}, "
-                             f"got {self.noise_model!r}")
+        require_choice("noise_model", self.noise_model, NOISE_MODELS)
         for name in ("L", "dt", "duration"):
             object.__setattr__(self, name, require_positive(name, getattr(self, name)))
         steps = self.duration / self.dt
