@@ -247,8 +247,9 @@ def test_bad_input_one_line_exit_2(argv, words, tmp_path, capsys, monkeypatch):
     def no_monte_carlo(*a, **k):
         raise AssertionError("the Monte Carlo started before the input was checked")
 
-    if "--every" not in argv:  # the only row that fails after reading its input
-        monkeypatch.setattr(calibration_cli, "run_monte_carlo", no_monte_carlo)
+    monkeypatch.setattr(calibration_cli, "run_monte_carlo", no_monte_carlo)
+    monkeypatch.setattr(coop_cli, "truth_model_test", no_monte_carlo)
+    monkeypatch.setattr(coop_cli, "fit_q_scale", no_monte_carlo)
     _no_figure_data(monkeypatch, no_monte_carlo)
     code, out, err = _run(argv, capsys)
     assert code == 2 and out == ""
