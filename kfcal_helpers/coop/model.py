@@ -218,28 +218,34 @@ def require_last_axis(name: str, array, n: int) -> np.ndarray:
     return arr
 
 
-#: argument checks of the public functions (validation.checked): states (..., 6), measurements (..., 5),
-#: controls (..., 4), sigma points (..., m, 6) or (..., m, 5) and their weights (m,), finite numbers
+#: argument checks of the public functions (validation.checked): states (..., 6),
+#: controls (..., 4), sigma points (..., m, 6) or (..., m, 5) and their weights (m,), finite numbers; matrices
 _STATES = partial(require_finite_array, shape=(..., 6))
-_MEASUREMENTS = partial(require_finite_array, shape=(..., 5))
 _CONTROLS = partial(require_finite_array, shape=(..., 4))
 _STATE_POINTS = partial(require_finite_array, shape=(..., None, 6))
 _MEASUREMENT_POINTS = partial(require_finite_array, shape=(..., None, 5))
 _WEIGHTS = partial(require_finite_array, shape=(None,))
-_ANGLES = require_finite_array
 #: elementwise arithmetic (wrapping, residuals, sums) lets NaN through as NaN: a missing value stays missing
 _STATES_OR_NAN = partial(require_finite_array, shape=(..., 6), allow_nan=True)
 _ANGLES_OR_NAN = require_array
-
-
-def _leading_measurements(name, value):
-    """Measurements (..., m), the first m <= 5 components (a residual of bearings and range alone is one)."""
-    arr = require_array(name, value)
-    if arr.ndim < 1 or not 1 <= arr.shape[-1] <= N_MEAS:
-        raise ValueError(f"{name} must have shape (..., m) with 1 <= m <= {N_MEAS} (the first m measurements), "
-                         f"got {arr.shape}")
-    return arr
 _MATRICES = partial(require_finite_array, shape=(..., None, None))
+
+
+def _pair_shape(a, b, n: int, what: str, exact: bool, names=("a", "b")) -> None:
+    """Raise naming ``a`` or ``b`` (as ``names``) unless the two arrays broadcast to (..., n) (``exact``) or
+    (..., m), m <= n (the first m components: a residual of the bearings and the range alone is one)."""
+    try:
+        shape = np.broadcast_shapes(a.shape, b.shape)
+    except ValueError:
+        raise ValueError(f"{names[0]} and {names[1]} must broadcast together, got shapes {a.shape} and "
+                         f"{b.shape}") from None
+    if len(shape) >= 1 and (shape[-1] == n if exact else 1 <= shape[-1] <= n):
+        return
+    first = a.shape == shape or not b.shape
+    want = f"(..., {n})" if exact else f"(..., m) with m <= {n}"
+    raise ValueError(f"{names[0 if first else 1]} must be {what} of shape {want}, got shape "
+                     f"{(a if first else b).shape}")
+
 
 # ---------------------------------------------------------------------------
 # Angles
@@ -290,9 +296,11 @@ def wrap_measurement(y):
     return _wrap_components(y, _MEAS_ANGLE_SLICE)
 
 
-@checked(x=_STATES_OR_NAN, dx=_STATES_OR_NAN)
+@checked(x=_ANGLES_OR_NAN, dx=_ANGLES_OR_NAN)
 def state_add(x, dx):
-    """``x + dx`` for states (..., 6), headings wrapped (the UKF's ``state_add``)."""
+    """``x + dx`` for states (..., 6), headings wrapped (the UKF's ``state_add``); ``dx`` may be anything
+    that broadcasts against ``x``."""
+    _pair_shape(x, dx, N_STATES, "states", exact=True, names=("x", "dx"))
     return _wrap_components(np.add(x, dx, dtype=float), _STATE_ANGLE_SLICE, copy=False)
 
 
@@ -318,15 +326,19 @@ def measurement_mean(sigmas, weights):
     return _weighted_mean(sigmas, weights, _MEAS_ANGLE_SLICE)
 
 
-@checked(a=_STATES_OR_NAN, b=_STATES_OR_NAN)
+@checked(a=_ANGLES_OR_NAN, b=_ANGLES_OR_NAN)
 def state_residual(a, b):
-    """``a - b`` for states (..., 6) with the heading differences wrapped (rad)."""
+    """``a - b`` for states (..., 6) with the heading differences wrapped (rad); ``b`` may be anything that
+    broadcasts against ``a``."""
+    _pair_shape(a, b, N_STATES, "states", exact=True)
     return _wrap_components(np.subtract(a, b, dtype=float), _STATE_ANGLE_SLICE, copy=False)
 
 
-@checked(a=_leading_measurements, b=_leading_measurements)
+@checked(a=_ANGLES_OR_NAN, b=_ANGLES_OR_NAN)
 def measurement_residual(a, b):
-    """``a - b`` for measurements (..., 5) with the bearing differences wrapped (rad)."""
+    """``a - b`` for measurements (..., 5) (or their first m components) with the bearing differences
+    wrapped (rad); ``b`` may be a scalar or anything that broadcasts against ``a``."""
+    _pair_shape(a, b, N_MEAS, "measurements", exact=False)
     return _wrap_components(np.subtract(a, b, dtype=float), _MEAS_ANGLE_SLICE, copy=False)
 
 
