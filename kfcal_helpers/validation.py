@@ -3,6 +3,11 @@
 Each check raises ``ValueError`` whose message names the argument and what is
 allowed, so a student sees at once which input was wrong.  The command line
 turns these errors into one line on stderr and exit status 2.
+
+A public function lists its checks in one place, the :func:`checked` decorator above it::
+
+    @checked(x=partial(require_finite_array, shape=(..., 6)), dt=require_positive)
+    def step(x, u, dt=0.1): ...
 """
 
 from __future__ import annotations
