@@ -1,4 +1,4 @@
-"""Every exported function (and parameter class) of ``kfcal_helpers.calibration`` and ``kfcal_helpers.coop`` and of the shared
+"""Every exported function (and parameter or log class) of ``kfcal_helpers.calibration`` and ``kfcal_helpers.coop`` and of the shared
 numeric modules ``kfcal_helpers.consistency`` and ``kfcal_helpers.montecarlo``, called with each argument in
 turn replaced by ``None``, NaN, an int of 10**400 and an array of a wrong shape: it raises ``ValueError`` or
 ``TypeError`` whose one-line message names the argument (never ``AttributeError``, ``IndexError``,
@@ -106,6 +106,9 @@ VALID = {
     "format_table": lambda: dict(rows=[[1.0, 2.0]], headers=["a", "b"], digits=3),
     "CalibrationParams": lambda: dict(),
     "CoopParams": lambda: dict(),
+    "MeasurementModel": lambda: dict(R=np.eye(5)),
+    "CoopLog": lambda: (lambda lg: dict(t=lg.t, y=lg.y, Qtrue=lg.Qtrue, Rtrue=lg.Rtrue, truth=lg.truth, source="x"))(
+        _coop_log()),
     # consistency
     "chi2_bounds": lambda: dict(dim=2, n_samples=10, alpha=0.05),
     "t_band": lambda: dict(sd=1.0, n=10, level=0.05),
@@ -148,11 +151,14 @@ ALSO_VALID = {("run_monte_carlo", "seed"): {"None"}, ("truth_model_test", "seed"
               ("truth_model_draws", "seed"): {"None"}, ("chunk_generators", "seed"): {"None"}, ("run_monte_carlo", "progress"): {"None"},
               ("format_number", "value"): {"10**400"}}
 
+#: (name, argument): the name its messages use instead (a log's arrays carry the course's variable names)
+SAID_AS = {("CoopLog", "t"): "tvec", ("CoopLog", "y"): "ydata"}
+
 BAD_VALUES = {"None": None, "NaN": float("nan"), "10**400": 10**400, "wrong shape": np.zeros((2, 3, 7))}
 
 
-#: the problems' parameter classes: every field is fuzzed from the defaults
-PARAMS_CLASSES = (CalibrationParams, CoopParams)
+#: the problems' parameter and data classes: every field is fuzzed (from the defaults, or a small valid log)
+PARAMS_CLASSES = (CalibrationParams, CoopParams, coop.MeasurementModel, coop.CoopLog)
 
 
 def _exported():
@@ -213,8 +219,8 @@ def test_bad_argument_is_named(key, fn, arg, label):
             warnings.simplefilter("error")
             result = fn(**kwargs)
     except (ValueError, TypeError) as exc:
-        message = str(exc)
-        assert re.search(rf"(^|[^\w]){re.escape(arg)}([^\w]|$)", message), (type(exc).__name__, message)
+        message, said = str(exc), SAID_AS.get((name, arg), arg)
+        assert re.search(rf"(^|[^\w]){re.escape(said)}([^\w]|$)", message), (type(exc).__name__, message)
         assert "\n" not in message
         return
     assert allowed, f"{name}({arg}={label}) was accepted"

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..validation import require_covariance, require_instance, require_int
+from ..validation import require_array, require_covariance, require_instance, require_int, require_text
 from .model import MAX_MEASUREMENT, MAX_STEPS, MAX_VARIANCE, N_MEAS, N_STATES, CoopParams, too_many_steps
 
 __all__ = ["LOG_VARIABLES", "CoopLog", "load_log", "write_log_csv", "write_log_mat", "MAX_FILE_BYTES",
@@ -82,8 +82,9 @@ class CoopLog:
     source: str = ""
 
     def __post_init__(self):
-        t = np.asarray(self.t, dtype=float)
-        y = np.asarray(self.y, dtype=float)
+        t = require_array("tvec", self.t)
+        y = require_array("ydata", self.y)
+        require_text("source", self.source)
         if t.ndim != 1 or t.size < 2:
             raise ValueError(f"tvec must be a 1 x K vector with K >= 2, got shape {t.shape}")
         if not np.all(np.isfinite(t)):
@@ -113,7 +114,7 @@ class CoopLog:
         object.__setattr__(self, "Qtrue", require_covariance("Qtrue", self.Qtrue, N_STATES, MAX_VARIANCE))
         object.__setattr__(self, "Rtrue", require_covariance("Rtrue", self.Rtrue, N_MEAS, MAX_VARIANCE))
         if self.truth is not None:
-            truth = np.asarray(self.truth, dtype=float)
+            truth = require_array("truth", self.truth)
             if truth.shape != (t.size, N_STATES):
                 raise ValueError(f"truth must have shape ({t.size}, 6), got {truth.shape}")
             object.__setattr__(self, "truth", truth)

@@ -21,7 +21,7 @@ import numpy as np
 from ..montecarlo import MEMORY_LIMIT
 from functools import partial
 
-from ..validation import (checked, optional, require_array, require_choice, require_covariance, require_finite_array, require_instance, require_int,
+from ..validation import (checked, describe, optional, require_array, require_choice, require_covariance, require_finite_array, require_instance, require_int,
                           require_positive, require_shape)
 
 __all__ = [
@@ -541,14 +541,14 @@ def require_indices(name: str, value, n: int, what: str = "") -> tuple[int, ...]
     ValueError naming ``name`` (and ``what`` they index, if given) otherwise."""
     allowed = f"{name} must be a non-empty sequence of distinct integers in 0..{n - 1}{what}"
     if isinstance(value, (str, bytes)):
-        raise ValueError(f"{allowed}, got {value!r}")
+        raise ValueError(f"{allowed}, got {describe(value)}")
     try:
         items = list(value)
     except TypeError:
-        raise ValueError(f"{allowed}, got {value!r}") from None
+        raise ValueError(f"{allowed}, got {describe(value)}") from None
     ok = all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < n for i in items)
     if not items or not ok or len({int(i) for i in items}) != len(items):
-        raise ValueError(f"{allowed}, got {value!r}")
+        raise ValueError(f"{allowed}, got {describe(value)}")
     return tuple(sorted(int(i) for i in items))
 
 
@@ -570,11 +570,11 @@ class MeasurementModel:
 
     def __post_init__(self):
         rows = self.rows
-        ok = (not isinstance(rows, (str, bytes)) and len(rows) > 0
+        ok = (not isinstance(rows, (str, bytes)) and hasattr(rows, "__len__") and len(rows) > 0
               and all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < N_MEAS
                       for i in rows))
         if not ok or list(rows) != sorted({int(i) for i in rows}):
-            raise ValueError(f"rows must be a sorted non-empty tuple of distinct integers in 0..4, got {rows!r}")
+            raise ValueError(f"rows must be a sorted non-empty tuple of distinct integers in 0..4, got {describe(rows)}")
         rows = tuple(int(i) for i in rows)
         R = require_covariance("R", self.R, len(rows)).copy()
         R.setflags(write=False)
