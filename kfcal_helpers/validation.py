@@ -180,9 +180,9 @@ def require_int(name: str, value, minimum: int | None = None, maximum: int | Non
     if minimum is not None and value < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {describe(value)}")
     if maximum is not None and value > maximum:
-        low = "" if minimum is None else f"{minimum} <= "
-        raise ValueError(f"{name} must be an integer {low}<= {maximum:.6g}, "
-                         f"got {describe(value)}")
+        top = "2**63 - 1" if maximum == MAX_SEED else f"{maximum:.6g}"
+        allowed = f"from {minimum} to {top}" if minimum is not None else f"<= {top}"
+        raise ValueError(f"{name} must be an integer {allowed}, got {describe(value)}")
     return value
 
 
