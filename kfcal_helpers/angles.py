@@ -13,13 +13,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .validation import checked, require_array
+
 __all__ = ["TWO_PI", "wrap_angle", "angle_slice", "wrap_components", "weighted_mean", "AngleLayout"]
 
 TWO_PI = 2.0 * np.pi
 
 
+@checked(a=require_array)
 def wrap_angle(a):
-    """Wrap angles (rad) to (-pi, pi]; any shape."""
+    """Wrap angles (rad) to (-pi, pi]; any shape; ValueError naming ``a`` for what is not numbers."""
     return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), TWO_PI)
 
 

@@ -31,12 +31,20 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from scipy import stats
 
-from .validation import MIN_BAND_ALPHA, require_int, require_significance
+from functools import partial
+
+from .validation import (MAX_SEED, MIN_BAND_ALPHA, checked, require_array, require_finite_array, require_int,
+                         require_significance)
 
 __all__ = ["chi2_bounds", "chi2_sum_bounds", "step_checks", "t_band", "normal_band", "variance_band", "correlation_band", "uncentred_correlation_band",
            "normalized_squares", "nees", "nis", "inside_fraction", "Check", "MonteCarloSummary", "format_checks"]
 
+#: argument checks (validation.checked): counts that fit an int64, finite arrays of any shape
+_COUNT = partial(require_int, minimum=1, maximum=MAX_SEED)
+_FINITE = require_finite_array
 
+
+@checked(dim=_COUNT, n_samples=_COUNT)
 def chi2_bounds(dim: int, n_samples: int, alpha: float = 0.05) -> tuple[float, float]:
     """Bounds for the average of ``n_samples`` independent chi-square(dim) variables.
 
@@ -131,10 +139,12 @@ def _level(level) -> float:
     return require_significance("level", level, minimum=MIN_BAND_ALPHA)
 
 
-def _runs(n, minimum: int = 2) -> int:
-    return require_int("n", n, minimum=minimum)
+def _runs(n, minimum: int = 2, name: str = "n") -> int:
+    return require_int(name, n, minimum=minimum, maximum=MAX_SEED)
 
 
+
+@checked(sd=_FINITE)
 def t_band(sd, n: int, level: float):
     """Half-width of the band of an ensemble mean: ``t_{n-1}(1 - level/2) sd / sqrt(n)``.
 
@@ -147,6 +157,7 @@ def t_band(sd, n: int, level: float):
     return stats.t.ppf(1 - level / 2, n - 1) * np.asarray(sd, dtype=float) / np.sqrt(n)
 
 
+@checked(var=_FINITE)
 def normal_band(var, n: int, level: float):
     """Half-width of the band of a mean of ``n`` independent terms of known variance ``var``:
     ``z sqrt(var / n)``, ``z = norm.ppf(1 - level/2)`` (normal approximation).
@@ -158,6 +169,7 @@ def normal_band(var, n: int, level: float):
     return stats.norm.ppf(1 - level / 2) * np.sqrt(np.asarray(var, dtype=float) / n)
 
 
+@checked(expected=_FINITE)
 def variance_band(expected, dof: int, level: float):
     """The chi-square interval of a variance estimate: ``expected chi2_dof(level/2) / dof`` to
     ``expected chi2_dof(1 - level/2) / dof``.
@@ -166,12 +178,13 @@ def variance_band(expected, dof: int, level: float):
     variance of n realizations, ``n`` for the uncentred mean square of zero-mean ones; level in (0, 1).
     Returns ``(lower, upper)``, arrays shaped like ``expected``.
     """
-    dof, level = _runs(dof, 1), _level(level)
+    dof, level = _runs(dof, 1, "dof"), _level(level)
     expected = np.asarray(expected, dtype=float)
     return (expected * stats.chi2.ppf(level / 2, dof) / dof,
             expected * stats.chi2.ppf(1 - level / 2, dof) / dof)
 
 
+@checked(rho=_FINITE)
 def correlation_band(rho, n: int, level: float):
     """Fisher's band of an ensemble correlation around the true one, ``rho``:
     ``tanh(atanh(rho) -+ z / sqrt(n - 3))``, ``z = norm.ppf(1 - level/2)``.
@@ -202,6 +215,7 @@ def uncentred_correlation_band(n: int, level: float) -> float:
     return q / np.sqrt(n - 1 + q**2)
 
 
+@checked(err=require_array, cov=require_array)
 def normalized_squares(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
     """Return ``err^T cov^{-1} err`` over leading axes.
 
@@ -239,11 +253,15 @@ nees = normalized_squares
 nis = normalized_squares
 
 
+@checked(values=require_array, lower=_FINITE, upper=_FINITE)
 def inside_fraction(values, lower, upper) -> float:
     """Share of the finite entries of ``values`` that lie in ``[lower, upper]``."""
-    values = np.asarray(values, dtype=float)
-    lower = np.broadcast_to(lower, values.shape)
-    upper = np.broadcast_to(upper, values.shape)
+    try:
+        lower = np.broadcast_to(lower, values.shape)
+        upper = np.broadcast_to(upper, values.shape)
+    except ValueError:
+        raise ValueError(f"lower and upper must broadcast to the shape of values {values.shape}, got "
+                         f"{np.shape(lower)} and {np.shape(upper)}") from None
     ok = np.isfinite(values)
     if not ok.any():
         raise ValueError("values must hold at least one finite entry")

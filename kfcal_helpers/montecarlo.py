@@ -49,7 +49,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from .progress import progress_bar
-from .validation import require_int, require_seed
+from .validation import MAX_COUNT, require_int, require_seed
 
 __all__ = ["MEMORY_LIMIT", "MAX_SECONDS", "Experiment", "Chunk", "Cancelled", "Estimate", "default_workers",
            "chunk_sizes", "chunk_generators", "estimate", "run"]
@@ -149,10 +149,16 @@ def default_workers() -> int:
     return max(1, min(2, os.cpu_count() or 1))
 
 
+#: the most chunks a run is split into (a run the estimate accepts has far fewer)
+MAX_CHUNKS = 10**6
+
+
 def chunk_sizes(chunk: int, n_runs: int) -> list[int]:
     """The sizes of the chunks of ``n_runs`` realizations in chunks of ``chunk``, in order."""
-    chunk = require_int("chunk", chunk, minimum=1)
-    n_runs = require_int("n_runs", n_runs, minimum=1)
+    chunk = require_int("chunk", chunk, minimum=1, maximum=MAX_COUNT)
+    n_runs = require_int("n_runs", n_runs, minimum=1, maximum=MAX_COUNT)
+    if n_runs // chunk > MAX_CHUNKS:
+        raise ValueError(f"n_runs: {n_runs:.3g} realizations in chunks of {chunk} are more than {MAX_CHUNKS:.0e} chunks")
     return [chunk] * (n_runs // chunk) + ([n_runs % chunk] if n_runs % chunk else [])
 
 

@@ -159,3 +159,26 @@ def retimed_log(root: Path, t) -> Path:
 
 #: Unix-epoch seconds of a 0.1 s log (about 2023-11), as a logger writes them
 EPOCH = 1.7e9
+
+
+def short_lines(path: Path, lines: int = 8_900_000) -> Path:
+    """A 27 MB CSV of millions of short lines (``12``), just under the byte limit of ydata.csv: the shape
+    of a 5 x K matrix is refused from its line count, before the file is split or parsed."""
+    path.write_bytes(b"12\n" * lines)
+    return path
+
+
+def one_long_line(path: Path, values: int = 13_000_000) -> Path:
+    """A 26 MB CSV of one line of millions of values (``1,1,...``): far more than MAX_STEPS values."""
+    path.write_bytes(b"1," * (values - 1) + b"1\n")
+    return path
+
+
+def spreadsheet_log(root: Path, bom: bool = True, newline: str = "\r\n", sep: str = ",") -> Path:
+    """A small valid CSV log folder re-saved as a spreadsheet writes it: a UTF-8 byte-order mark at the
+    start of every file, CRLF line ends, and ``sep`` between the values."""
+    folder = log_folder(root)
+    for f in folder.glob("*.csv"):
+        text = f.read_text().replace(",", sep).replace("\n", newline)
+        f.write_bytes(("\ufeff" if bom else "").encode() + text.encode())
+    return folder

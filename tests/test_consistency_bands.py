@@ -56,7 +56,7 @@ def test_levels_on_simulated_draws():
     (lambda: t_band(1.0, 1, 0.05), "n must be an integer >= 2"),
     (lambda: t_band(1.0, 10, 1.5), "level"),
     (lambda: normal_band(1.0, 0, 0.05), "n must be an integer >= 1"),
-    (lambda: variance_band(1.0, 0, 0.05), "n must be an integer >= 1"),
+    (lambda: variance_band(1.0, 0, 0.05), "dof must be an integer >= 1"),
     (lambda: correlation_band(0.0, 10, 0.0), "level"),
     (lambda: uncentred_correlation_band(2.5, 0.05), "n must be an integer"),
 ])

@@ -177,6 +177,10 @@ def _y(value, rows=5):
     return y
 
 
+def _eye_csv(n, value):
+    return "".join(",".join(repr(value) if i == j else "0" for j in range(n)) + "\n" for i in range(n))
+
+
 def _long(name):
     return "a" * 256 + name
 
@@ -209,6 +213,31 @@ LOG_API_BAD = [
     ("log csv 1 MB Qtrue", lambda t, lg: load_log(lf.folder_with(t, "Qtrue", lambda f: f.write_text("1.0\n" * 300000))),
      r"Qtrue: .*Qtrue.csv is larger than the 0.1 MB"),
     ("log sparse mat", lambda t, lg: load_log(lf.sparse_file(t / "log.mat", 200_000_000)), r"path: .*log.mat is larger than"),
+    ("log csv 8.9 million short lines", lambda t, lg: load_log(lf.folder_with(t, "ydata", lf.short_lines)),
+     r"ydata: .*ydata.csv has 8900000 lines, more than a 5 x K matrix can have \(5 rows\)"),
+    ("log csv tvec of 1.5 million lines", lambda t, lg: load_log(lf.folder_with(t, "tvec", lambda f: lf.short_lines(f, 1_500_000))),
+     r"tvec: .*tvec.csv has 1500000 lines, more than a 1 x K vector can have"),
+    ("log csv one line of 13 million values", lambda t, lg: load_log(lf.folder_with(t, "ydata", lf.one_long_line)),
+     r"ydata: 13000000 steps, more than the 168269 allowed"),
+    ("log csv Qtrue of 7 columns", lambda t, lg: load_log(_folder(t, Qtrue="1,0,0,0,0,0,0\n" * 6)),
+     r"Qtrue: .*Qtrue.csv has a line of 7 values; a 6 x 6 matrix has 6"),
+    # arguments and messages (inputs): a NaN time, absurd noise covariances, a thinning that keeps nothing
+    ("log NaN in tvec", lambda t, lg: load_log(lf.retimed_log(t, np.r_[np.nan, 0.1 * np.arange(1, 11)])),
+     r"tvec must hold only finite times, got nan at column 0"),
+    ("log inf in tvec", lambda t, lg: load_log(lf.retimed_log(t, np.r_[0.1 * np.arange(10), np.inf])),
+     r"tvec must hold only finite times, got inf at column 10"),
+    ("log Qtrue 1e300 I", lambda t, lg: load_log(_folder(t, Qtrue=_eye_csv(6, 1e300))),
+     r"Qtrue variances must be at most 1e\+12 \(a standard deviation of 1e\+06\), got 1e\+300"),
+    ("log Rtrue 1e20 I", lambda t, lg: load_log(_folder(t, Rtrue=_eye_csv(5, 1e20))), r"Rtrue variances must be at most 1e\+12"),
+    ("coop params Qtrue 1e300 I", lambda t, lg: CoopParams(Qtrue=1e300 * np.eye(6)), r"Qtrue variances must be at most"),
+    ("log every keeps nothing", lambda t, lg: lg.every(100000), r"m must be at most 10 \(the log has 11 steps\), got 100000"),
+    ("fit_q_scale no measurement", lambda t, lg: fit_q_scale("ekf", np.full((11, 5), np.nan), (1.0,),
+                                                            CoopParams(duration=1.0)),
+     r"y holds no measurement \(every row is NaN\)"),
+    ("log csv semicolons", lambda t, lg: load_log(lf.spreadsheet_log(t, bom=False, newline="\n", sep=";")),
+     r"not a numeric CSV \(.*\); it looks semicolon-separated: save it comma-separated"),
+    ("log csv semicolons with a BOM", lambda t, lg: load_log(lf.spreadsheet_log(t, sep=";")),
+     r"it looks semicolon-separated"),
     ("coop params dt 5e-324", lambda t, lg: CoopParams(dt=5e-324), r"duration / dt must be at most 1e\+09 steps, got 100 s / 4.94066e-324 s = inf steps"),
     ("coop params duration 1e300", lambda t, lg: CoopParams(duration=1e300), r"duration / dt must be at most 1e\+09 steps, got 1e\+300 s"),
     ("run_filter too many rows", lambda t, lg: run_filter("ekf", _y(1.0, MAX_STEPS + 1)), r"y: 168270 steps"),
@@ -261,6 +290,17 @@ def test_log_with_rounded_timestamps_is_accepted(times, tmp_path):
     params = lg.params()
     assert params.n_samples == times.size and params.dt == pytest.approx(step, rel=1e-12)
     assert np.isfinite(run_filter("ekf", lg.y, params).x).all()
+
+
+@pytest.mark.parametrize("bom, newline", [(True, "\r\n"), (True, "\n"), (False, "\r\n"), (False, "\r")],
+                         ids=["BOM CRLF", "BOM LF", "CRLF", "CR"])
+def test_log_saved_by_a_spreadsheet_is_read(bom, newline, tmp_path):
+    """A log re-saved by a spreadsheet (a UTF-8 byte-order mark, CRLF or CR line ends) reads as the original."""
+    want = load_log(lf.log_folder(tmp_path / "plain"))
+    got = load_log(lf.spreadsheet_log(tmp_path / "sheet", bom=bom, newline=newline))
+    assert (tmp_path / "sheet" / "log" / "ydata.csv").read_bytes().startswith(b"\xef\xbb\xbf") == bom
+    for name in ("t", "y", "Qtrue", "Rtrue"):
+        assert np.array_equal(getattr(got, name), getattr(want, name), equal_nan=True), name
 
 
 def test_mat_bomb_is_refused_unread(tmp_path):

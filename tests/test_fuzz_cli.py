@@ -65,6 +65,12 @@ def _huge(root):
     return _log_folder(root, ydata=_ydata_text(y))
 
 
+def _every_fifth_missing():
+    y = simulate(CoopParams(duration=2.0), seed=1).log().y.T.copy()
+    y[:, ::5] = np.nan
+    return y
+
+
 def _all_nan(root):
     return _log_folder(root, ydata=_ydata_text(np.full((5, 21), np.nan)))
 
@@ -142,7 +148,10 @@ BAD = [
     (["coop", "--runs", "2", "--log", "{tmp}"], ["--runs"]),
     (["coop", "--every", "0"], ["--every"]),
     (["coop", "--every", "x"], ["--every"]),
-    (["coop", "--every", "100000"], ["measurement"]),
+    (["coop", "--every", "100000"], ["--every", "at most 1000", "has 1001 steps"]),
+    (["coop", "--every", "1001"], ["--every", "at most 1000"]),
+    (["calibrate", "--runs", "3", "--outage", "0.01:0.02"], ["--outage", "0.01:0.02 s removes no GPS fix"]),
+    (["calibrate", "--runs", "3", "--outage", "5:10", "--outage", "10.1:10.15"], ["--outage", "10.1:10.15 s removes no"]),
     (["coop", "--alpha", "0"], ["--alpha"]),
     (["coop", "--alpha", "1"], ["--alpha"]),
     (["coop", "--alpha", "nan"], ["--alpha"]),
@@ -238,8 +247,9 @@ def test_bad_input_one_line_exit_2(argv, words, tmp_path, capsys, monkeypatch):
     def no_monte_carlo(*a, **k):
         raise AssertionError("the Monte Carlo started before the input was checked")
 
-    if "--every" not in argv:  # the only row that fails after reading its input
-        monkeypatch.setattr(calibration_cli, "run_monte_carlo", no_monte_carlo)
+    monkeypatch.setattr(calibration_cli, "run_monte_carlo", no_monte_carlo)
+    monkeypatch.setattr(coop_cli, "truth_model_test", no_monte_carlo)
+    monkeypatch.setattr(coop_cli, "fit_q_scale", no_monte_carlo)
     _no_figure_data(monkeypatch, no_monte_carlo)
     code, out, err = _run(argv, capsys)
     assert code == 2 and out == ""
@@ -941,6 +951,17 @@ LOG_READER_BAD = [
     ("256-char log name", lambda t: t / ("a" * 256), [], ["--log", "cannot read"]),
     ("alpha 1e-300", lf.log_folder, ["--alpha", "1e-300"], ["--alpha", "[1e-06, 0.5]"]),
     ("alpha 1e-7 runs", None, ["--runs", "2", "--alpha", "1e-7"], ["--alpha", "[1e-06, 0.5]"]),
+    # arguments and messages (inputs)
+    ("every 100000 runs", None, ["--runs", "3", "--every", "100000"], ["--every", "at most 1000"]),
+    ("every 2000 q-scale auto", lf.log_folder, ["--every", "2000", "--q-scale", "auto"],
+     ["--every", "at most 10 (the log has 11 steps"]),
+    ("every keeps only NaN rows", lambda t: _log_folder(t, ydata=_ydata_text(_every_fifth_missing())), ["--every", "5"],
+     ["--every 5 keeps no measurement of this log"]),
+    ("NaN in tvec", lambda t: lf.retimed_log(t, np.r_[0.1 * np.arange(10), np.nan]),
+     [], ["tvec must hold only finite times", "nan at column 10"]),
+    ("Qtrue 1e300 I", lambda t: (lambda f: ((f / "Qtrue.csv").write_text(
+        "".join(",".join("1e300" if i == j else "0" for j in range(6)) + "\n" for i in range(6))), f)[1])(
+        lf.log_folder(t)), [], ["Qtrue variances must be at most 1e+12"]),
 ]
 
 
@@ -981,3 +1002,68 @@ def test_memory_error_on_a_log_blames_the_log(tmp_path, capsys, monkeypatch):
     assert code == 2 and out == ""
     _one_error_line(err, "coop")
     assert "not enough memory" in err and "shorter log" in err and "realizations" not in err
+
+
+# --- the course-log reader's bounds on lines and values (inputs) ---
+LOG_SHAPE_BAD = [
+    ("8.9 million short lines", lambda t: lf.folder_with(t, "ydata", lf.short_lines),
+     ["ydata", "has 8900000 lines", "5 x K matrix"]),
+    ("one line of 13 million values", lambda t: lf.folder_with(t, "ydata", lf.one_long_line),
+     ["ydata: 13000000 steps", "168269 allowed"]),
+    ("semicolon-separated", lambda t: lf.spreadsheet_log(t, sep=";"), ["ydata", "semicolon-separated", "comma"]),
+]
+
+#: a child process: the command line on argv, then its own peak resident memory (VmHWM, bytes) on stderr
+_PEAK_CHILD = ("import sys; from kfcal_helpers.cli import main; code = main(sys.argv[1:]); "
+               "print([int(l.split()[1]) * 1024 for l in open('/proc/self/status') if l.startswith('VmHWM')][0], "
+               "file=sys.stderr); sys.exit(code)")
+
+
+@pytest.mark.parametrize("build, words", [r[1:] for r in LOG_SHAPE_BAD], ids=[r[0] for r in LOG_SHAPE_BAD])
+def test_log_of_the_wrong_shape_one_line_exit_2(build, words, tmp_path, capsys, monkeypatch):
+    """A log file of millions of short lines, of one line of millions of values, or separated by semicolons:
+    one line naming the file's variable, exit 2, before any filter runs."""
+    monkeypatch.setattr(coop_cli, "run_filter", lambda *a, **k: pytest.fail("a filter ran"))
+    code, out, err = _run(["coop", "--log", str(build(tmp_path))], capsys)
+    assert code == 2 and out == "", err
+    _one_error_line(err, "coop")
+    for word in words:
+        assert word in err, (word, err)
+
+
+def test_log_saved_by_a_spreadsheet_runs(tmp_path, capsys):
+    """A log with a UTF-8 byte-order mark and CRLF line ends gives the numbers of the plain log."""
+    plain = _run(["coop", "--log", str(lf.log_folder(tmp_path / "a")), "--json"], capsys)
+    sheet = _run(["coop", "--log", str(lf.spreadsheet_log(tmp_path / "b")), "--json"], capsys)
+    assert plain[0] == sheet[0] == 0 and sheet[2] == ""
+    a, b = json.loads(plain[1]), json.loads(sheet[1])
+    assert a["nis_time_average"] == b["nis_time_average"] and a["steps"] == b["steps"]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="VmHWM is read from /proc (Linux)")
+@pytest.mark.parametrize("build, words", [r[1:] for r in LOG_SHAPE_BAD[:2]], ids=[r[0] for r in LOG_SHAPE_BAD[:2]])
+def test_refused_log_peak_memory_of_a_child(build, words, tmp_path):
+    """The 27 MB file of 8.9 million short lines (which peaked at 883 MB before it was refused) and the
+    one-line file of 13 million values: a child process, SIGINT at its default, refuses them (exit 2,
+    one line) with a peak resident memory (VmHWM) within the 500 MB promise, and within 100 MB of what
+    the interpreter and its imports take on a valid small log."""
+    env = {**ENV, "KFCAL_WORKERS": "2"}
+
+    def child(folder):
+        r = subprocess.run([sys.executable, "-c", _PEAK_CHILD, "coop", "--log", str(folder)], capture_output=True,
+                           text=True, env=env, timeout=300, preexec_fn=_sigint_default)
+        *lines, peak = r.stderr.strip().splitlines()
+        return r.returncode, lines, int(peak)
+
+    code, lines, peak = child(build(tmp_path / "bad"))
+    base_code, _, base = child(lf.log_folder(tmp_path / "good"))
+    assert base_code == 0
+    assert peak <= MEMORY_LIMIT and peak - base < 100e6, (peak / 1e6, base / 1e6)
+    assert code == 2 and len(lines) == 1, lines
+    for word in words:
+        assert word in lines[0], (word, lines)
+
+
+def _sigint_default():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)

@@ -26,12 +26,18 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from ..validation import require_int
+from functools import partial
+
+from ..validation import checked, optional, require_array, require_finite_array, require_int
 from .error_model import ErrorStateModel
 from .engine import accumulated_noise, between_fixes, filter_model, matrix_powers
 from .params import CalibrationParams
 
 __all__ = ["prior_covariances_at_fixes", "batch_conditioning_covariance", "batch_conditioning", "rts_smooth_fixes"]
+
+
+#: argument checks (validation.checked): covariances at the fixes (n_gps, 3, 3)
+_COVARIANCES = partial(require_finite_array, shape=(None, 3, 3))
 
 
 def prior_covariances_at_fixes(params: CalibrationParams, model: ErrorStateModel | None = None) -> np.ndarray:
@@ -49,6 +55,7 @@ def prior_covariances_at_fixes(params: CalibrationParams, model: ErrorStateModel
     return np.einsum("kab,bc,kdc->kad", Pk, m.M0, Pk) + cum[k]
 
 
+@checked(Pi=optional(_COVARIANCES))
 def batch_conditioning_covariance(params: CalibrationParams, i: int, model: ErrorStateModel | None = None,
                                   Pi: np.ndarray | None = None) -> np.ndarray:
     """Covariance of ``x(t_i)`` given all fixes ``dz_0..dz_i`` by one Gaussian conditioning.
@@ -70,6 +77,7 @@ def batch_conditioning_covariance(params: CalibrationParams, i: int, model: Erro
     return P
 
 
+@checked(dz=optional(require_array), Pi=optional(_COVARIANCES))
 def batch_conditioning(params: CalibrationParams, i: int, dz=None, model: ErrorStateModel | None = None,
                        Pi: np.ndarray | None = None):
     """Mean and covariance of ``x(t_i)`` given the fixes ``dz_0..dz_i``, by one Gaussian conditioning.
@@ -121,6 +129,7 @@ def batch_conditioning(params: CalibrationParams, i: int, dz=None, model: ErrorS
     return mean, (P + P.T) / 2
 
 
+@checked(x_prior=require_array, x_post=require_array, P_prior=_COVARIANCES, P_post=_COVARIANCES)
 def rts_smooth_fixes(params: CalibrationParams, x_prior, x_post, P_prior, P_post,
                      model: ErrorStateModel | None = None):
     """Rauch-Tung-Striebel smoother on the fix-to-fix model, many realizations at once.

@@ -204,6 +204,10 @@ def run(args) -> int:
         params_name="--duration, --imu-rate, --gps-rate" + (", --figures" if args.figures else ""))
     windows = [parse_outage(text, "--outage") for text in args.outage]
     missing = outage_mask(params, windows, name="--outage") if windows else None
+    for start, end in windows:  # a window between two fixes would change nothing: say so, not run silently
+        if not outage_mask(params, [(start, end)], name="--outage").any():
+            raise ValueError(f"--outage: the window {start:g}:{end:g} s removes no GPS fix (the fixes are "
+                             f"{1 / params.gps_rate:g} s apart, the first at 0 s)")
     if missing is not None and (~missing).sum() < 2:
         raise ValueError(f"--outage: the outages leave {int((~missing).sum())} of the {params.n_gps} GPS fixes; "
                          f"at least 2 must remain")

@@ -21,8 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 from filterpy.kalman import KalmanFilter
 
-from ..validation import require_shape
-from .engine import between_fixes, covariance_sequence, estimate_between_fixes, filter_estimates, filter_model
+from functools import partial
+
+from ..validation import checked, optional, require_bool, require_instance, require_shape
+from .engine import Covariances, between_fixes, covariance_sequence, estimate_between_fixes, filter_estimates, filter_model
 from .error_model import ErrorStateModel
 from .params import CalibrationParams
 
@@ -82,6 +84,7 @@ def _check_dz(params: CalibrationParams, dz, batch: bool) -> np.ndarray:
     return dz
 
 
+@checked(params=partial(require_instance, cls=CalibrationParams))
 def run_filterpy(params: CalibrationParams, dz, model: ErrorStateModel | None = None) -> FilterResult:
     """Run filterpy's KalmanFilter over one realization.
 
@@ -126,6 +129,8 @@ def run_filterpy(params: CalibrationParams, dz, model: ErrorStateModel | None = 
     return FilterResult(x, P, x_prior, x[idx].copy(), P_prior, P[idx].copy(), y, S, K)
 
 
+@checked(params=partial(require_instance, cls=CalibrationParams), full_rate=require_bool,
+         covariances=optional(partial(require_instance, cls=Covariances)))
 def batch_filter(params: CalibrationParams, dz, full_rate: bool = True, covariances=None,
                  model: ErrorStateModel | None = None) -> FilterResult:
     """Run the filter on many realizations at once (same gains for all).

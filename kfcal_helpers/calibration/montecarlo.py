@@ -69,7 +69,10 @@ import numpy as np
 from .. import montecarlo as core
 from ..consistency import (Check, chi2_bounds, correlation_band, normal_band, t_band, uncentred_correlation_band,
                            variance_band)
-from ..validation import require_choice, require_instance, require_int, require_mask, require_seed, require_significance
+from functools import partial
+
+from ..validation import (MAX_COUNT, checked, optional, require_bool, require_choice, require_finite, require_instance,
+                          require_int, require_mask, require_seed, require_significance, require_workers)
 from .engine import between_fixes, covariance_sequence, filter_estimates, filter_model
 from .error_model import ErrorStateModel, error_state_model
 from .filters import run_filterpy
@@ -823,6 +826,15 @@ _SCENARIO_ADVICE = ("use a shorter duration or lower rates (at most about 1000 G
                     "samples)")
 
 
+def _byte_count(name, value):
+    value = require_finite(name, value)
+    if value < 0:
+        raise ValueError(f"{name} must be >= 0 bytes, got {value:g}")
+    return value
+
+
+@checked(n_runs=partial(require_int, minimum=2, maximum=MAX_COUNT), progress=optional(require_bool),
+         between_fixes=require_bool, workers=optional(require_workers), extra_bytes=_byte_count)
 def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: str = "batch",
                     truth: str = "euler", alpha: float = 0.05, missing_fixes=None, progress: bool | None = False,
                     model: ErrorStateModel | None = None, between_fixes: bool = False,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..validation import require_instance
+from ..validation import checked, require_instance, require_text
 from .params import CalibrationParams
 
 __all__ = ["outage_mask", "parse_outage"]
@@ -19,6 +19,7 @@ __all__ = ["outage_mask", "parse_outage"]
 _TOL = 1e-9  #: s, tolerance when comparing fix times with window ends
 
 
+@checked(name=require_text)
 def outage_mask(params: CalibrationParams, windows, name: str = "windows") -> np.ndarray:
     """Bool mask of the GPS fixes inside the outage windows.
 
@@ -62,6 +63,7 @@ def outage_mask(params: CalibrationParams, windows, name: str = "windows") -> np
     return mask
 
 
+@checked(text=require_text, name=require_text)
 def parse_outage(text: str, name: str = "--outage") -> tuple[float, float]:
     """Parse ``"START:END"`` (seconds) into ``(start, end)`` floats.
 

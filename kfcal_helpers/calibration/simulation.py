@@ -20,7 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..validation import as_generator, require_choice, require_instance, require_int, require_mask
+from functools import partial
+
+from ..validation import (MAX_SEED, as_generator, checked, require_choice, require_finite_array, require_instance,
+                          require_int, require_mask, require_positive)
 from .params import CalibrationParams
 
 __all__ = [
@@ -39,12 +42,24 @@ __all__ = [
 
 TRUTH_MODELS = ("euler", "analytic")
 
+#: argument checks (validation.checked): the parameters; a start value, a scalar or one per realization (n,)
+_PARAMS = partial(require_instance, cls=CalibrationParams)
 
+
+def _start_value(name, value):
+    arr = require_finite_array(name, value)
+    if arr.ndim > 1:
+        raise ValueError(f"{name} must be a number or a vector (n,), got shape {arr.shape}")
+    return arr
+
+
+@checked(t=require_finite_array, params=_PARAMS)
 def acceleration(t, params: CalibrationParams) -> np.ndarray:
     """True acceleration ``a(t) = A sin(omega t)``, m/s^2, same shape as ``t`` (s)."""
     return params.A * np.sin(params.omega * np.asarray(t, dtype=float))
 
 
+@checked(t=partial(require_finite_array, shape=(None,)), p0=_start_value, v0=_start_value, params=_PARAMS)
 def analytic_truth(t, p0, v0, params: CalibrationParams) -> tuple[np.ndarray, np.ndarray]:
     """Exact position and velocity for ``a(t) = A sin(omega t)``.
 
@@ -60,9 +75,7 @@ def analytic_truth(t, p0, v0, params: CalibrationParams) -> tuple[np.ndarray, np
     -------
     p, v : arrays (n, n_t) (or (n_t,) for scalar p0, v0), m and m/s
     """
-    t = np.asarray(t, dtype=float)
-    p0 = np.asarray(p0, dtype=float)[..., None]
-    v0 = np.asarray(v0, dtype=float)[..., None]
+    p0, v0 = p0[..., None], v0[..., None]
     A, w = params.A, params.omega
     v = v0 + (A / w) * (1.0 - np.cos(w * t))
     p = p0 + (v0 + A / w) * t - (A / w**2) * np.sin(w * t)
@@ -77,6 +90,8 @@ def _exclusive_cumsum(x: np.ndarray) -> np.ndarray:
     return out
 
 
+@checked(acc=partial(require_finite_array, shape=(..., None)), p_init=require_finite_array,
+         v_init=require_finite_array, dt=require_positive)
 def integrate_left(acc, p_init, v_init, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Left-Riemann (Euler) integration used by the IMU and by the Euler truth.
 
@@ -92,9 +107,11 @@ def integrate_left(acc, p_init, v_init, dt: float) -> tuple[np.ndarray, np.ndarr
     -------
     p, v : arrays (..., n_t), m and m/s
     """
-    acc = np.asarray(acc, dtype=float)
-    v_init = np.asarray(v_init, dtype=float)[..., None]
-    p_init = np.asarray(p_init, dtype=float)[..., None]
+    for name, start in (("p_init", p_init), ("v_init", v_init)):
+        if np.broadcast_shapes(start.shape, acc.shape[:-1]) != acc.shape[:-1]:
+            raise ValueError(f"{name} must broadcast to acc's leading axes {acc.shape[:-1]}, got shape {start.shape}")
+    v_init = v_init[..., None]
+    p_init = p_init[..., None]
     v = v_init + dt * _exclusive_cumsum(acc)
     p = p_init + _exclusive_cumsum(v * dt + acc * (0.5 * dt * dt))
     return p, v
@@ -267,6 +284,7 @@ def mean_error_state(params: CalibrationParams, truth: str = "euler") -> np.ndar
     return out
 
 
+@checked(n_runs=partial(require_int, minimum=1, maximum=MAX_SEED))
 def simulate(params: CalibrationParams, n_runs: int, seed, truth: str = "euler", missing_fixes=None) -> Simulation:
     """Simulate ``n_runs`` realizations of truth, IMU and GPS.
 

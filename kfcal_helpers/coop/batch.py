@@ -40,7 +40,7 @@ from filterpy.kalman import MerweScaledSigmaPoints
 
 from ..batching import BatchArrays
 from ..unscented import batch_sigma_points, gain_solve, mT, unscented_moments
-from ..validation import require_instance
+from ..validation import checked, optional, require_array, require_bool, require_instance
 from .filters import FilterSetup
 from .model import N_MEAS, N_STATES, STATE, arc, jacobian_A, nominal_trajectory
 
@@ -272,6 +272,8 @@ def run_ukf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
 _RUNNERS = {"lkf": run_lkf_batch, "ekf": run_ekf_batch, "ukf": run_ukf_batch}
 
 
+@checked(y=require_array, setup=functools.partial(require_instance, cls=FilterSetup), truth=optional(require_array),
+         keep_estimates=require_bool)
 def run_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = False) -> BatchResult:
     """Run the filter ``setup.filter`` on the measurements ``y`` (N, K, 5) of N realizations.
 

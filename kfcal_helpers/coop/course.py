@@ -13,6 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
+from functools import partial
+
+from ..validation import checked, optional, require_instance, require_seed
 from .data import CoopLog, load_log
 from .model import CoopParams
 from .simulation import DEFAULT_LOG_SEED, simulate
@@ -28,6 +31,7 @@ COURSE_LOG_VARIABLE = "KFCAL_COURSE_LOG"
 COURSE_LOG_ROW_MEANS = (-0.016611491, 101.816714229, 1.571116849, 48.827709559, -0.911894946)
 
 
+@checked(log=partial(require_instance, cls=CoopLog), params=optional(partial(require_instance, cls=CoopParams)))
 def is_course_log(log: CoopLog, params: CoopParams | None = None) -> bool:
     """True if ``log`` is the course's observation log: 1001 samples 0.1 s apart, the truth model's ``Qtrue``
     and ``Rtrue`` (of ``params``, default the course's) and the row means :data:`COURSE_LOG_ROW_MEANS`
@@ -50,6 +54,7 @@ def course_log_path() -> Path | None:
     return path if path.exists() else None
 
 
+@checked(params=optional(partial(require_instance, cls=CoopParams)), seed=partial(require_seed, allow_none=False))
 def course_log(params: CoopParams | None = None, seed: int = DEFAULT_LOG_SEED) -> tuple[CoopLog, bool, str]:
     """``(log, found, message)``: the course log named by ``KFCAL_COURSE_LOG`` (``found`` True), or a
     seeded generated log with ``params``' noise model (``found`` False); ``message`` is one line

@@ -35,8 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..validation import require_covariance, require_instance, require_int
-from .model import MAX_MEASUREMENT, MAX_STEPS, N_MEAS, N_STATES, CoopParams, too_many_steps
+from ..validation import require_array, require_covariance, require_instance, require_int, require_text
+from .model import MAX_MEASUREMENT, MAX_STEPS, MAX_VARIANCE, N_MEAS, N_STATES, CoopParams, too_many_steps
 
 __all__ = ["LOG_VARIABLES", "CoopLog", "load_log", "write_log_csv", "write_log_mat", "MAX_FILE_BYTES",
            "MAX_MEASUREMENT"]
@@ -82,10 +82,14 @@ class CoopLog:
     source: str = ""
 
     def __post_init__(self):
-        t = np.asarray(self.t, dtype=float)
-        y = np.asarray(self.y, dtype=float)
-        if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)):
-            raise ValueError(f"tvec must be a finite 1 x K vector with K >= 2, got shape {t.shape}")
+        t = require_array("tvec", self.t)
+        y = require_array("ydata", self.y)
+        require_text("source", self.source)
+        if t.ndim != 1 or t.size < 2:
+            raise ValueError(f"tvec must be a 1 x K vector with K >= 2, got shape {t.shape}")
+        if not np.all(np.isfinite(t)):
+            k = int(np.flatnonzero(~np.isfinite(t))[0])
+            raise ValueError(f"tvec must hold only finite times, got {t[k]} at column {k}")
         if y.shape != (t.size, N_MEAS):
             raise ValueError(f"ydata must have shape (5, {t.size}) to match tvec, got {y.T.shape}")
         if t.size > MAX_STEPS:
@@ -107,10 +111,10 @@ class CoopLog:
             raise ValueError(f"ydata columns must be all finite or all NaN; column {int(np.flatnonzero(bad | np.isinf(y).any(axis=1))[0])} is not")
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "y", y)
-        object.__setattr__(self, "Qtrue", require_covariance("Qtrue", self.Qtrue, N_STATES))
-        object.__setattr__(self, "Rtrue", require_covariance("Rtrue", self.Rtrue, N_MEAS))
+        object.__setattr__(self, "Qtrue", require_covariance("Qtrue", self.Qtrue, N_STATES, MAX_VARIANCE))
+        object.__setattr__(self, "Rtrue", require_covariance("Rtrue", self.Rtrue, N_MEAS, MAX_VARIANCE))
         if self.truth is not None:
-            truth = np.asarray(self.truth, dtype=float)
+            truth = require_array("truth", self.truth)
             if truth.shape != (t.size, N_STATES):
                 raise ValueError(f"truth must have shape ({t.size}, 6), got {truth.shape}")
             object.__setattr__(self, "truth", truth)
@@ -132,6 +136,8 @@ class CoopLog:
     def every(self, m: int) -> "CoopLog":
         """A copy that keeps the measurements of every ``m``-th step (k = 0, m, 2m, ...), NaN elsewhere."""
         m = require_int("m", m, minimum=1)
+        if m > self.n_samples - 1:
+            raise ValueError(f"m must be at most {self.n_samples - 1} (the log has {self.n_samples} steps), got {m}")
         y = np.full_like(self.y, np.nan)
         y[::m] = self.y[::m]
         return CoopLog(self.t, y, self.Qtrue, self.Rtrue, self.truth, f"{self.source} (every {m})")
@@ -245,15 +251,53 @@ def _read_csv(name: str, f: Path, argname: str) -> np.ndarray:
     except UnicodeDecodeError:
         raise ValueError(f"{name}: {f} is not a numeric CSV (not text)") from None
     del data
+    if text.startswith("\ufeff"):  # the byte-order mark a spreadsheet writes at the start of a UTF-8 file
+        text = text[1:]
     if not text.strip():
         raise ValueError(f"{name}: {f} is empty")
+    lines = _bounded_lines(name, f, text)
+    del text
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return np.loadtxt(text.splitlines(), delimiter=",", ndmin=2)
+            return np.loadtxt(lines, delimiter=",", ndmin=2)
     except ValueError as exc:
         reason = " ".join(str(exc).split())
-        raise ValueError(f"{name}: {f} is not a numeric CSV ({reason})") from None
+        reason = reason if len(reason) <= 200 else reason[:197] + "..."  # loadtxt quotes the whole bad value
+        hint = ""
+        if any(";" in line for line in lines[:10]):
+            hint = "; it looks semicolon-separated: save it comma-separated, with '.' as the decimal point"
+        raise ValueError(f"{name}: {f} is not a numeric CSV ({reason}){hint}") from None
+
+
+#: the rows each CSV may hold (tvec: one row of K times, or one column of them), and the blank or comment
+#: lines allowed beside them
+_CSV_ROWS = {"ydata": N_MEAS, "tvec": MAX_STEPS, "Qtrue": N_STATES, "Rtrue": N_MEAS}
+_CSV_SPARE_LINES = 100
+#: the values one line may hold (one row of ydata or tvec holds at most MAX_STEPS)
+_CSV_FIELDS = {"ydata": MAX_STEPS, "tvec": MAX_STEPS, "Qtrue": N_STATES, "Rtrue": N_MEAS}
+
+
+def _bounded_lines(name: str, f: Path, text: str) -> list:
+    """The lines of a CSV's ``text``, after counting its lines and each line's fields against the
+    shape the variable may have, so that a file of millions of short lines (or one line of millions of
+    values) is refused before it is split or parsed (a parsed value costs about 30 times its bytes)."""
+    rows = _CSV_ROWS[name]
+    if "\r" in text:  # CRLF (a spreadsheet's) or CR line ends
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    # only these end a line (str.splitlines would split on form feeds too); the last may lack its "\n"
+    n_lines = text.count("\n") + (not text.endswith("\n"))
+    shape = "a 1 x K vector" if name == "tvec" else ("a 5 x K matrix" if name == "ydata" else
+                                                      f"a {rows} x {rows} matrix")
+    if n_lines > rows + _CSV_SPARE_LINES:
+        raise ValueError(f"{name}: {f} has {n_lines} lines, more than {shape} can have "
+                         f"({rows} rows{' of times' if name == 'tvec' else ''})")
+    lines = text.split("\n")
+    most = max(line.count(",") + 1 for line in lines)
+    if most > _CSV_FIELDS[name]:
+        raise ValueError(too_many_steps(name, most) if name in ("ydata", "tvec") else
+                         f"{name}: {f} has a line of {most} values; {shape} has {rows}")
+    return lines
 
 
 #: MATLAB classes (as scipy.io.whosmat names them) that hold numbers, and how the others are named

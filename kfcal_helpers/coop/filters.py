@@ -30,6 +30,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from functools import partial
+
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter, KalmanFilter, MerweScaledSigmaPoints, UnscentedKalmanFilter
 
@@ -37,7 +39,8 @@ from ..consistency import chi2_bounds as _chi2_bounds
 from ..consistency import nees as _nees
 from ..consistency import nis as _nis
 from ..unscented import VectorizedUKF, robust_sqrt
-from ..validation import require_choice, require_covariance, require_instance, require_positive, require_shape
+from ..validation import (checked, optional, require_array, require_choice, require_covariance, require_instance,
+                          require_positive, require_shape)
 from .model import (
     MAX_MEASUREMENT,
     MAX_STEPS,
@@ -112,6 +115,7 @@ class SigmaPoints:
 UKF_POINTS = SigmaPoints()
 
 
+@checked(params=optional(partial(require_instance, cls=CoopParams)))
 def tuned_Q(filter: str, params: CoopParams | None = None) -> np.ndarray:
     """The tuned filter process noise of ``filter``: the covariance (6x6) of ``w_k``, which
     enters the state as ``Omega Q Omega^T`` per step."""
@@ -338,6 +342,7 @@ class _Storage:
 
 # ---------------------------------------------------------------------------
 # LKF
+@checked(setup=partial(require_instance, cls=FilterSetup))
 def make_lkf(setup: FilterSetup) -> KalmanFilter:
     """filterpy KalmanFilter on dx = x - x_nom, initialised at dx0 = x0 - x_nom_0, with the setup's
     Q (entering as ``Omega Q Omega^T``) and R (``dim_z`` = the measurement model's rows)."""
@@ -418,6 +423,7 @@ class CoopEKF(ExtendedKalmanFilter):
         return self.setup.measurement.residual(a[:, 0], b[:, 0]).reshape(-1, 1)
 
 
+@checked(setup=partial(require_instance, cls=FilterSetup))
 def make_ekf(setup: FilterSetup) -> CoopEKF:
     """A :class:`CoopEKF` initialised at (x0, P0) with the setup's Q and R."""
     ekf = CoopEKF(setup)
@@ -457,6 +463,7 @@ def run_ekf(y, setup: FilterSetup | None = None, truth=None) -> FilterResult:
 
 # ---------------------------------------------------------------------------
 # UKF
+@checked(setup=partial(require_instance, cls=FilterSetup))
 def make_ukf(setup: FilterSetup) -> UnscentedKalmanFilter:
     """filterpy UnscentedKalmanFilter with the setup's Merwe scaled sigma points, its measurement
     model (h, circular z mean, wrapped residual, R) and the state's angle functions."""
@@ -513,6 +520,7 @@ def run(y, setup: FilterSetup, truth=None) -> FilterResult:
     return _RUNNERS[setup.filter](y, setup, truth)
 
 
+@checked(params=optional(partial(require_instance, cls=CoopParams)), truth=optional(require_array))
 def run_filter(filter: str, y, params: CoopParams | None = None, *, truth=None, **settings) -> FilterResult:
     """Run filter ``filter`` ("lkf", "ekf", "ukf") on measurements ``y``: the short entry.
 
@@ -584,6 +592,7 @@ class QScaleFit:
         return self.scales[(self.nis_averages >= lo) & (self.nis_averages <= hi)]
 
 
+@checked(params=optional(partial(require_instance, cls=CoopParams)))
 def fit_q_scale(filter: str, y, scales, params: CoopParams | None = None, *, alpha: float = 0.05,
                 **settings) -> QScaleFit:
     """Maximum-likelihood fit of the scale s of ``Q = s * Qtrue`` to the log ``y`` over ``scales``.
@@ -598,6 +607,8 @@ def fit_q_scale(filter: str, y, scales, params: CoopParams | None = None, *, alp
     scales = np.array([require_positive("scales", s) for s in np.atleast_1d(scales)], dtype=float)
     if scales.size == 0:
         raise ValueError("scales must hold at least one value")
+    if not np.isfinite(require_array("y", y)).any():
+        raise ValueError("y holds no measurement (every row is NaN)")
     ll, nis = np.empty(scales.size), np.empty(scales.size)
     for i, s in enumerate(scales):  # one run in memory at a time
         r = run_filter(filter, y, p, Q=s * p.Qtrue, **settings)

@@ -14,12 +14,14 @@ Every function accepts arrays with leading axes: ``x`` of shape (..., 6),
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
 from ..angles import AngleLayout, weighted_mean, wrap_angle, wrap_components
 from ..montecarlo import MEMORY_LIMIT
-from ..validation import require_covariance, require_int, require_positive, require_shape
+from ..validation import (checked, describe, optional, require_array, require_choice, require_covariance, require_finite_array, require_instance, require_int,
+                          require_positive, require_shape)
 
 __all__ = [
     "N_STATES",
@@ -82,6 +84,9 @@ NOISE_MODELS = ("dt", "identity")
 
 #: largest magnitude accepted in measurements (m, rad): beyond it the filters' squares overflow
 MAX_MEASUREMENT = 1e6
+#: largest variance accepted in Qtrue and Rtrue (a standard deviation of MAX_MEASUREMENT): beyond it the NIS
+#: of any log is a vanishing number (1e300 * I gave 1e-296), not a test
+MAX_VARIANCE = MAX_MEASUREMENT ** 2
 
 #: bytes one filter run keeps per step (float64 counts): the stored x_prior, x_post (6 + 6), P_prior,
 #: P_post (36 + 36), z_pred, y (5 + 5), S (25) and K (30); the result's NIS, NEES, t and the copies of
@@ -152,9 +157,7 @@ class CoopParams:
     noise_model: str = "dt"  #: how w_k enters the state: "dt" (Omega = dt I) or "identity" (Omega = I)
 
     def __post_init__(self):
-        if self.noise_model not in NOISE_MODELS:
-            raise ValueError(f"noise_model must be one of {', '.join(repr(m) for m in NOISE_MODELS)}, "
-                             f"got {self.noise_model!r}")
+        require_choice("noise_model", self.noise_model, NOISE_MODELS)
         for name in ("L", "dt", "duration"):
             object.__setattr__(self, name, require_positive(name, getattr(self, name)))
         steps = self.duration / self.dt
@@ -166,8 +169,8 @@ class CoopParams:
         arrays = {
             "x0": require_shape("x0", self.x0, (N_STATES,)),
             "u0": require_shape("u0", self.u0, (4,)),
-            "Qtrue": require_covariance("Qtrue", self.Qtrue, N_STATES),
-            "Rtrue": require_covariance("Rtrue", self.Rtrue, N_MEAS),
+            "Qtrue": require_covariance("Qtrue", self.Qtrue, N_STATES, MAX_VARIANCE),
+            "Rtrue": require_covariance("Rtrue", self.Rtrue, N_MEAS, MAX_VARIANCE),
             "P0": require_covariance("P0", self.P0, N_STATES),
         }
         for name in ("x0", "u0"):
@@ -206,12 +209,41 @@ class CoopParams:
 
 def require_last_axis(name: str, array, n: int) -> np.ndarray:
     """Return ``array`` as a float ndarray; raise unless its shape is (..., n) with finite entries."""
-    arr = np.asarray(array, dtype=float)
+    arr = require_array(name, array)
     if arr.ndim < 1 or arr.shape[-1] != n:
         raise ValueError(f"{name} must have shape (..., {n}), got {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must hold only finite numbers")
     return arr
+
+
+#: argument checks of the public functions (validation.checked): states (..., 6),
+#: controls (..., 4), sigma points (..., m, 6) or (..., m, 5) and their weights (m,), finite numbers; matrices
+_STATES = partial(require_finite_array, shape=(..., 6))
+_CONTROLS = partial(require_finite_array, shape=(..., 4))
+_STATE_POINTS = partial(require_finite_array, shape=(..., None, 6))
+_MEASUREMENT_POINTS = partial(require_finite_array, shape=(..., None, 5))
+_WEIGHTS = partial(require_finite_array, shape=(None,))
+#: elementwise arithmetic (wrapping, residuals, sums) lets NaN through as NaN: a missing value stays missing
+_STATES_OR_NAN = partial(require_finite_array, shape=(..., 6), allow_nan=True)
+_ANGLES_OR_NAN = require_array
+_MATRICES = partial(require_finite_array, shape=(..., None, None))
+
+
+def _pair_shape(a, b, n: int, what: str, exact: bool, names=("a", "b")) -> None:
+    """Raise naming ``a`` or ``b`` (as ``names``) unless the two arrays broadcast to (..., n) (``exact``) or
+    (..., m), m <= n (the first m components: a residual of the bearings and the range alone is one)."""
+    try:
+        shape = np.broadcast_shapes(a.shape, b.shape)
+    except ValueError:
+        raise ValueError(f"{names[0]} and {names[1]} must broadcast together, got shapes {a.shape} and "
+                         f"{b.shape}") from None
+    if len(shape) >= 1 and (shape[-1] == n if exact else 1 <= shape[-1] <= n):
+        return
+    first = a.shape == shape or not b.shape
+    want = f"(..., {n})" if exact else f"(..., m) with m <= {n}"
+    raise ValueError(f"{names[0 if first else 1]} must be {what} of shape {want}, got shape "
+                     f"{(a if first else b).shape}")
 
 
 # ---------------------------------------------------------------------------
@@ -221,6 +253,7 @@ _STATE_ANGLE_SLICE = slice(2, 6, 3)  # STATE_ANGLES
 _MEAS_ANGLE_SLICE = slice(0, 3, 2)  # MEAS_ANGLES
 
 
+@checked(x=_STATES_OR_NAN)
 def wrap_state(x):
     """Copy of states ``x`` (..., 6) with the headings wrapped to (-pi, pi]; ValueError for another shape."""
     x = np.asarray(x, dtype=float)
@@ -229,33 +262,45 @@ def wrap_state(x):
     return wrap_components(x, _STATE_ANGLE_SLICE)
 
 
+@checked(y=partial(require_finite_array, shape=(..., 5), allow_nan=True))
 def wrap_measurement(y):
     """Copy of measurements ``y`` (..., 5) with the bearings wrapped to (-pi, pi]."""
     return wrap_components(y, _MEAS_ANGLE_SLICE)
 
 
+@checked(x=_ANGLES_OR_NAN, dx=_ANGLES_OR_NAN)
 def state_add(x, dx):
-    """``x + dx`` for states (..., 6), headings wrapped (the UKF's ``state_add``)."""
+    """``x + dx`` for states (..., 6), headings wrapped (the UKF's ``state_add``); ``dx`` may be anything
+    that broadcasts against ``x``."""
+    _pair_shape(x, dx, N_STATES, "states", exact=True, names=("x", "dx"))
     return wrap_components(np.add(x, dx, dtype=float), _STATE_ANGLE_SLICE, copy=False)
 
 
+@checked(sigmas=_STATE_POINTS, weights=_WEIGHTS)
 def state_mean(sigmas, weights):
     """Weighted mean of state points (..., m, 6) with weights (m,); headings by circular mean."""
     return weighted_mean(sigmas, weights, _STATE_ANGLE_SLICE)
 
 
+@checked(sigmas=_MEASUREMENT_POINTS, weights=_WEIGHTS)
 def measurement_mean(sigmas, weights):
     """Weighted mean of measurement points (..., m, 5); bearings by circular mean."""
     return weighted_mean(sigmas, weights, _MEAS_ANGLE_SLICE)
 
 
+@checked(a=_ANGLES_OR_NAN, b=_ANGLES_OR_NAN)
 def state_residual(a, b):
-    """``a - b`` for states (..., 6) with the heading differences wrapped (rad)."""
+    """``a - b`` for states (..., 6) with the heading differences wrapped (rad); ``b`` may be anything that
+    broadcasts against ``a``."""
+    _pair_shape(a, b, N_STATES, "states", exact=True)
     return wrap_components(np.subtract(a, b, dtype=float), _STATE_ANGLE_SLICE, copy=False)
 
 
+@checked(a=_ANGLES_OR_NAN, b=_ANGLES_OR_NAN)
 def measurement_residual(a, b):
-    """``a - b`` for measurements (..., 5) with the bearing differences wrapped (rad)."""
+    """``a - b`` for measurements (..., 5) (or their first m components) with the bearing differences
+    wrapped (rad); ``b`` may be a scalar or anything that broadcasts against ``a``."""
+    _pair_shape(a, b, N_MEAS, "measurements", exact=False)
     return wrap_components(np.subtract(a, b, dtype=float), _MEAS_ANGLE_SLICE, copy=False)
 
 
@@ -287,6 +332,7 @@ def dynamics(x, u, L: float = 0.5):
                                         va * np.cos(x[..., 5]), va * np.sin(x[..., 5]), wa), axis=-1)
 
 
+@checked(x=_STATES, u=_CONTROLS, dt=require_finite_array, L=require_positive)
 def arc(x, u, dt, L):
     """Closed-form flow of f over ``dt`` (s, scalar or array broadcast with x's leading axes), without
     checks: ``x`` (..., 6) and ``u`` (..., 4) float arrays, ``L > 0`` (the fast core of :func:`step`)."""
@@ -326,13 +372,14 @@ def step(x, u, dt: float = 0.1, L: float = 0.5):
                 require_positive("dt", dt), require_positive("L", L))
 
 
+@checked(params=optional(partial(require_instance, cls=CoopParams)))
 def nominal_trajectory(params: CoopParams | None = None, n_samples: int | None = None) -> np.ndarray:
     """Nominal states at t_k = k dt from the closed-form arcs (no integration), shape (K, 6).
 
     ``K = params.n_samples`` unless ``n_samples`` is given.
     """
     p = params if params is not None else CoopParams()
-    K = p.n_samples if n_samples is None else require_int("n_samples", n_samples, minimum=1)
+    K = p.n_samples if n_samples is None else require_int("n_samples", n_samples, minimum=1, maximum=MAX_STEPS)
     t = p.dt * np.arange(K)
     out = arc(np.broadcast_to(p.x0, (t.size, N_STATES)), p.u0, t, p.L)
     out[0] = wrap_state(p.x0)
@@ -350,6 +397,7 @@ def _relative(x):
     return x, dxi, deta, r2
 
 
+@checked(x=_STATES)
 def measure(x) -> np.ndarray:
     """Noise-free measurement ``h(x)``, shape (..., 5): rad, m, rad, m, m (bearings wrapped)."""
     x, dxi, deta, r2 = _relative(x)
@@ -364,6 +412,7 @@ def measure(x) -> np.ndarray:
 
 # ---------------------------------------------------------------------------
 # Jacobians
+@checked(x=_STATES, u=_CONTROLS, L=require_positive)
 def jacobian_A(x, u, L: float = 0.5) -> np.ndarray:
     """CT state Jacobian ``A = df/dx`` at (x, u), shape (..., 6, 6) (1/s and m/(s rad))."""
     x = np.asarray(x, dtype=float)
@@ -376,6 +425,7 @@ def jacobian_A(x, u, L: float = 0.5) -> np.ndarray:
     return A
 
 
+@checked(x=_STATES, u=_CONTROLS, L=require_positive)
 def jacobian_B(x, u, L: float = 0.5) -> np.ndarray:
     """CT input Jacobian ``B = df/du`` at (x, u), shape (..., 6, 4)."""
     x = np.asarray(x, dtype=float)
@@ -420,14 +470,14 @@ def require_indices(name: str, value, n: int, what: str = "") -> tuple[int, ...]
     ValueError naming ``name`` (and ``what`` they index, if given) otherwise."""
     allowed = f"{name} must be a non-empty sequence of distinct integers in 0..{n - 1}{what}"
     if isinstance(value, (str, bytes)):
-        raise ValueError(f"{allowed}, got {value!r}")
+        raise ValueError(f"{allowed}, got {describe(value)}")
     try:
         items = list(value)
     except TypeError:
-        raise ValueError(f"{allowed}, got {value!r}") from None
+        raise ValueError(f"{allowed}, got {describe(value)}") from None
     ok = all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < n for i in items)
     if not items or not ok or len({int(i) for i in items}) != len(items):
-        raise ValueError(f"{allowed}, got {value!r}")
+        raise ValueError(f"{allowed}, got {describe(value)}")
     return tuple(sorted(int(i) for i in items))
 
 
@@ -449,11 +499,11 @@ class MeasurementModel:
 
     def __post_init__(self):
         rows = self.rows
-        ok = (not isinstance(rows, (str, bytes)) and len(rows) > 0
+        ok = (not isinstance(rows, (str, bytes)) and hasattr(rows, "__len__") and len(rows) > 0
               and all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < N_MEAS
                       for i in rows))
         if not ok or list(rows) != sorted({int(i) for i in rows}):
-            raise ValueError(f"rows must be a sorted non-empty tuple of distinct integers in 0..4, got {rows!r}")
+            raise ValueError(f"rows must be a sorted non-empty tuple of distinct integers in 0..4, got {describe(rows)}")
         rows = tuple(int(i) for i in rows)
         R = require_covariance("R", self.R, len(rows)).copy()
         R.setflags(write=False)
@@ -530,13 +580,18 @@ def jacobian_step(x, u, dt: float = 0.1, L: float = 0.5) -> np.ndarray:
     return J
 
 
+@checked(A=partial(require_finite_array, shape=(N_STATES, N_STATES)),
+         B=partial(require_finite_array, shape=(N_STATES, 4)),
+         C=partial(require_finite_array, shape=(None, N_STATES)), dt=require_positive)
 def discretize(A, B, C, dt: float = 0.1):
-    """DT matrices ``F = I + dt A``, ``G = dt B``, ``H = C`` (A^2 = 0 for this model, so F = expm(A dt))."""
+    """DT matrices ``F = I + dt A``, ``G = dt B``, ``H = C`` (A^2 = 0 for this model, so F = expm(A dt)):
+    A (6, 6), B (6, 4), C (m, 6) finite."""
     dt = require_positive("dt", dt)
     A = np.asarray(A, dtype=float)
     return np.eye(A.shape[-1]) + dt * A, dt * np.asarray(B, dtype=float), np.asarray(C, dtype=float)
 
 
+@checked(F=_MATRICES, H=_MATRICES)
 def observability_matrix(F, H) -> np.ndarray:
     """Stacked observability matrix of a time-varying model over a window of m steps.
 

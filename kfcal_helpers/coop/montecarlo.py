@@ -33,10 +33,13 @@ import numpy as np
 
 from .. import montecarlo as core
 from ..consistency import Check, chi2_bounds, inside_fraction, t_band
-from ..validation import require_instance, require_int, require_seed, require_significance
+from functools import partial
+
+from ..validation import (MAX_SEED, checked, optional, require_instance, require_int, require_seed,
+                          require_significance, require_text, require_workers)
 from .batch import run_batch
 from .filters import FilterSetup
-from .model import N_MEAS, N_STATES, CoopParams
+from .model import MAX_STEPS, N_MEAS, N_STATES, CoopParams
 from .simulation import Simulation, simulate
 
 __all__ = ["CHUNK_SIZE", "MonteCarloResult", "TruthModelExperiment", "truth_model_test", "truth_model_draws",
@@ -271,6 +274,9 @@ def estimate_truth_model_test(params: CoopParams | None = None, n_runs: int = 50
                          what=f"{exp.params.n_samples} steps of the {exp.setup.filter.upper()}")
 
 
+@checked(params=optional(partial(require_instance, cls=CoopParams)), n_runs=partial(require_int, minimum=1, maximum=MAX_SEED),
+         every=partial(require_int, minimum=1, maximum=MAX_STEPS),
+         workers=optional(require_workers), desc=optional(require_text))
 def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0, *, filter: str = "ekf",
                      alpha: float = 0.05, every: int = 1, workers: int | None = None, desc: str | None = None,
                      **settings) -> MonteCarloResult:
@@ -306,6 +312,9 @@ def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0,
                     what=f"{exp.params.n_samples} steps of the {exp.setup.filter.upper()}")
 
 
+@checked(params=optional(partial(require_instance, cls=CoopParams)), n_runs=partial(require_int, minimum=1, maximum=MAX_SEED),
+         every=partial(require_int, minimum=1, maximum=MAX_STEPS),
+         run=optional(partial(require_int, minimum=0)))
 def truth_model_draws(params: CoopParams | None = None, n_runs: int = 50, seed=0, *, every: int = 1,
                       run: int | None = None) -> Simulation:
     """The truths and measurements :func:`truth_model_test` ``(params, n_runs, seed, every=every)``

@@ -20,9 +20,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import cholesky
 
-from ..validation import as_generator, require_instance, require_int
+from functools import partial
+
+from ..validation import (MAX_SEED, as_generator, checked, optional, require_bool, require_finite_array, require_instance,
+                          require_int, require_seed_or_generator)
 from .data import CoopLog
-from .model import N_MEAS, N_STATES, STATE, CoopParams, MeasurementModel, arc
+from .model import MAX_STEPS, N_MEAS, N_STATES, STATE, CoopParams, MeasurementModel, arc
 
 __all__ = ["Simulation", "simulate", "simulate_truth", "simulate_measurements", "DEFAULT_LOG_SEED"]
 
@@ -40,6 +43,9 @@ def _params(params) -> CoopParams:
     return require_instance("params", params, CoopParams, allow_none=True) or CoopParams()
 
 
+@checked(params=optional(partial(require_instance, cls=CoopParams)),
+         seed=optional(require_seed_or_generator), n_runs=optional(partial(require_int, minimum=1, maximum=MAX_SEED)),
+         x0=optional(partial(require_finite_array, shape=(..., N_STATES))), process_noise=require_bool)
 def simulate_truth(params: CoopParams | None = None, seed=None, n_runs: int | None = None,
                    x0=None, process_noise: bool = True) -> np.ndarray:
     """Noisy true states at t_k = k dt.
@@ -72,6 +78,9 @@ def simulate_truth(params: CoopParams | None = None, seed=None, n_runs: int | No
     return STATE.wrap(x)
 
 
+@checked(truth=partial(require_finite_array, shape=(..., None, N_STATES)),
+         params=optional(partial(require_instance, cls=CoopParams)), seed=optional(require_seed_or_generator),
+         first=require_bool)
 def simulate_measurements(truth, params: CoopParams | None = None, seed=None, first: bool = False) -> np.ndarray:
     """Noisy measurements ``h(x_k) + v_k``, v_k ~ N(0, Rtrue), bearings wrapped.
 
@@ -130,6 +139,8 @@ class Simulation:
         return CoopLog(p.t, y, p.Qtrue, p.Rtrue, truth=truth, source=source)
 
 
+@checked(params=optional(partial(require_instance, cls=CoopParams)), n_runs=optional(partial(require_int, minimum=1, maximum=MAX_SEED)),
+         seed=require_seed_or_generator, every=partial(require_int, minimum=1, maximum=MAX_STEPS))
 def simulate(params: CoopParams | None = None, n_runs: int | None = None, seed=DEFAULT_LOG_SEED, *,
              every: int = 1) -> Simulation:
     """Truths and measurements of the truth model, from one seeded generator.

@@ -5,15 +5,51 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..validation import require_int
+from functools import partial
+
+from ..validation import checked, optional, require_array, require_int
 
 __all__ = ["format_number", "format_matrix", "format_table"]
 
+#: decimals a table may show (a float has 17 significant digits)
+_DIGITS = partial(require_int, minimum=0, maximum=17)
 
+
+def _matrix(name, value):
+    arr = require_array(name, value)
+    if arr.ndim > 2 or arr.size == 0:
+        raise ValueError(f"{name} must be a non-empty number, vector or 2-D matrix, got shape {arr.shape}")
+    return arr
+
+
+def _headers(name, value):
+    if isinstance(value, (str, bytes)) or not all(isinstance(h, (str, int, float)) for h in _sequence(name, value)):
+        raise ValueError(f"{name} must be a sequence of column names (text)")
+    return value
+
+
+def _rows(name, value):
+    for row in _sequence(name, value):
+        if isinstance(row, (str, bytes)) or not all(isinstance(v, (str, int, float, np.number, np.bool_))
+                                                    for v in _sequence(name, row)):
+            raise ValueError(f"{name} must be a sequence of rows of numbers or text")
+    return value
+
+
+def _sequence(name, value):
+    try:
+        return list(value)
+    except TypeError:
+        raise ValueError(f"{name} must be a sequence, got {type(value).__name__}") from None
+
+
+@checked(digits=_DIGITS)
 def format_number(value, digits: int = 3) -> str:
     """``value`` with ``digits`` decimals; -0.000 is printed as 0.000; strings pass through."""
     if isinstance(value, str):
         return value
+    if not isinstance(value, (int, float, np.number, np.bool_)):
+        raise ValueError(f"value must be a number or a text, got {type(value).__name__}")
     if isinstance(value, (bool, np.bool_)):
         return "yes" if value else "no"
     if isinstance(value, (int, np.integer)):
@@ -25,6 +61,7 @@ def format_number(value, digits: int = 3) -> str:
     return f"{round(v, digits) + 0.0:.{digits}f}"
 
 
+@checked(matrix=_matrix, digits=_DIGITS, width=optional(partial(require_int, minimum=1, maximum=100)))
 def format_matrix(matrix, digits: int = 3, width: int | None = None) -> str:
     """Rows of a 2-D array, right-aligned columns of ``digits`` decimals."""
     m = np.atleast_2d(np.asarray(matrix, dtype=float))
@@ -33,6 +70,7 @@ def format_matrix(matrix, digits: int = 3, width: int | None = None) -> str:
     return "\n".join(" ".join(c.rjust(w) for c in row) for row in cells)
 
 
+@checked(rows=_rows, headers=_headers, digits=_DIGITS)
 def format_table(rows, headers, digits: int = 3) -> str:
     """A table: ``rows`` is a list of sequences (numbers or strings), ``headers`` their names."""
     cells = [[str(h) for h in headers]] + [[format_number(v, digits) for v in row] for row in rows]

@@ -1,0 +1,228 @@
+"""Every exported function (and parameter or log class) of ``kfcal_helpers.calibration`` and ``kfcal_helpers.coop`` and of the shared
+numeric modules ``kfcal_helpers.consistency`` and ``kfcal_helpers.montecarlo``, called with each argument in
+turn replaced by ``None``, NaN, an int of 10**400 and an array of a wrong shape: it raises ``ValueError`` or
+``TypeError`` whose one-line message names the argument (never ``AttributeError``, ``IndexError``,
+``OverflowError``...), or, where that value is valid (``None`` for an argument whose default is ``None``,
+any shape for an elementwise function, NaN for a missing measurement), returns a result without NaN.
+Left out: the exercise checks (``check_*``: a one-line verdict, never an error), ``kfcal_helpers.assignments``,
+the command-line entries, the figure, widget and process machinery of the other shared modules, and
+``montecarlo.estimate`` and ``run``, which take an ``Experiment`` (``tests/test_montecarlo_core.py``)."""
+
+import inspect
+import re
+import warnings
+
+import numpy as np
+import pytest
+
+from kfcal_helpers import calibration, consistency, coop, montecarlo
+from kfcal_helpers.calibration import CalibrationParams
+from kfcal_helpers.coop import CoopParams, FilterSetup
+
+CP = CalibrationParams(duration=2.0)
+KP = CoopParams(duration=1.0)
+X0, U0 = KP.x0, KP.u0
+
+
+def _coop_log():
+    return coop.simulate(KP, seed=1).log()
+
+
+def _calib_run():
+    sim = calibration.simulate(CP, 1, 0)
+    return calibration.run_filterpy(CP, sim.dz[0])
+
+
+def _calib_dz():
+    return calibration.simulate(CP, 1, 0).dz[0]
+
+
+#: {exported name: a valid call's keyword arguments (built lazily)}; every argument named here is fuzzed
+VALID = {
+    # calibration
+    "simulate@calibration": lambda: dict(params=CP, n_runs=1, seed=0),
+    "acceleration": lambda: dict(t=CP.t_imu[:5], params=CP),
+    "analytic_truth": lambda: dict(t=CP.t_imu[:5], p0=0.0, v0=0.0, params=CP),
+    "integrate_left": lambda: dict(acc=np.ones(5), p_init=0.0, v_init=0.0, dt=0.005),
+    "error_state_model": lambda: dict(params=CP),
+    "phi_power": lambda: dict(params=CP, k=3),
+    "make_kalman_filter": lambda: dict(params=CP, model=calibration.error_state_model(CP)),
+    "run_filterpy": lambda: dict(params=CP, dz=_calib_dz(), model=calibration.error_state_model(CP)),
+    "between_fixes": lambda: dict(params=CP, model=calibration.error_state_model(CP)),
+    "covariance_sequence": lambda: dict(params=CP, missing_fixes=np.zeros(CP.n_gps, bool)),
+    "batch_filter": lambda: dict(params=CP, dz=_calib_dz()[None], full_rate=True),
+    "run_monte_carlo": lambda: dict(params=CP, n_runs=2, seed=0, alpha=0.05),
+    "outage_mask": lambda: dict(params=CP, windows=[(0.5, 1.0)]),
+    "parse_outage": lambda: dict(text="1:2", name="text"),
+    "batch_conditioning": lambda: dict(params=CP, i=3, dz=_calib_dz()),
+    "batch_conditioning_covariance": lambda: dict(params=CP, i=3),
+    "prior_covariances_at_fixes": lambda: dict(params=CP),
+    "rts_smooth_fixes": lambda: (lambda r: dict(params=CP, x_prior=r.x_prior, x_post=r.x_post, P_prior=r.P_prior,
+                                                P_post=r.P_post))(_calib_run()),
+    # coop
+    "course_log": lambda: dict(params=KP, seed=1),
+    "is_course_log": lambda: dict(log=_coop_log(), params=KP),
+    "course_log_path": lambda: dict(),
+    "load_log": None,  # a path: its own rows in test_fuzz_api.py
+    "write_log_csv": None,
+    "write_log_mat": None,
+    "fit_q_scale": lambda: dict(filter="ekf", y=_coop_log().y, scales=(1.0,), params=KP, alpha=0.05),
+    "make_ekf": lambda: dict(setup=FilterSetup.build("ekf", KP)),
+    "make_lkf": lambda: dict(setup=FilterSetup.build("lkf", KP)),
+    "make_ukf": lambda: dict(setup=FilterSetup.build("ukf", KP)),
+    "run": lambda: dict(y=_coop_log().y, setup=FilterSetup.build("ekf", KP)),
+    "run_ekf": lambda: dict(y=_coop_log().y, setup=FilterSetup.build("ekf", KP)),
+    "run_lkf": lambda: dict(y=_coop_log().y, setup=FilterSetup.build("lkf", KP)),
+    "run_ukf": lambda: dict(y=_coop_log().y, setup=FilterSetup.build("ukf", KP)),
+    "run_filter": lambda: dict(filter="ekf", y=_coop_log().y, params=KP),
+    "tuned_Q": lambda: dict(filter="ekf", params=KP),
+    "arc": lambda: dict(x=X0, u=U0, dt=0.1, L=0.5),
+    "discretize": lambda: dict(A=coop.jacobian_A(X0, U0), B=coop.jacobian_B(X0, U0), C=coop.jacobian_C(X0), dt=0.1),
+    "dynamics": lambda: dict(x=X0, u=U0, L=0.5),
+    "jacobian_A": lambda: dict(x=X0, u=U0, L=0.5),
+    "jacobian_B": lambda: dict(x=X0, u=U0, L=0.5),
+    "jacobian_C": lambda: dict(x=X0),
+    "measure": lambda: dict(x=X0),
+    "measurement_mean": lambda: dict(sigmas=np.ones((3, 5)), weights=np.full(3, 1 / 3)),
+    "measurement_residual": lambda: dict(a=np.ones(5), b=np.zeros(5)),
+    "nominal_trajectory": lambda: dict(params=KP, n_samples=5),
+    "observability_matrix": lambda: dict(F=np.broadcast_to(np.eye(6), (2, 6, 6)),
+                                         H=np.broadcast_to(coop.jacobian_C(X0), (3, 5, 6))),
+    "state_add": lambda: dict(x=X0, dx=np.ones(6)),
+    "state_mean": lambda: dict(sigmas=np.ones((3, 6)), weights=np.full(3, 1 / 3)),
+    "state_residual": lambda: dict(a=np.ones(6), b=np.zeros(6)),
+    "step": lambda: dict(x=X0, u=U0, dt=0.1, L=0.5),
+    "wrap_angle": lambda: dict(a=np.array([0.5, 4.0])),
+    "wrap_measurement": lambda: dict(y=np.ones(5)),
+    "wrap_state": lambda: dict(x=X0),
+    "run_batch": lambda: dict(y=_coop_log().y[None], setup=FilterSetup.build("ekf", KP)),
+    "truth_model_draws": lambda: dict(params=KP, n_runs=2, seed=0, every=1, run=0),
+    "truth_model_test": lambda: dict(params=KP, n_runs=2, seed=0, filter="ekf", alpha=0.05, every=1),
+    "simulate@coop": lambda: dict(params=KP, n_runs=2, seed=0, every=1),
+    "simulate_measurements": lambda: dict(truth=coop.nominal_trajectory(KP), params=KP, seed=0),
+    "simulate_truth": lambda: dict(params=KP, seed=0, n_runs=2),
+    "format_matrix": lambda: dict(matrix=np.eye(2), digits=3),
+    "format_number": lambda: dict(value=1.5, digits=3),
+    "format_table": lambda: dict(rows=[[1.0, 2.0]], headers=["a", "b"], digits=3),
+    "CalibrationParams": lambda: dict(),
+    "CoopParams": lambda: dict(),
+    "MeasurementModel": lambda: dict(R=np.eye(5)),
+    "CoopLog": lambda: (lambda lg: dict(t=lg.t, y=lg.y, Qtrue=lg.Qtrue, Rtrue=lg.Rtrue, truth=lg.truth, source="x"))(
+        _coop_log()),
+    # consistency
+    "chi2_bounds": lambda: dict(dim=2, n_samples=10, alpha=0.05),
+    "t_band": lambda: dict(sd=1.0, n=10, level=0.05),
+    "normal_band": lambda: dict(var=1.0, n=10, level=0.05),
+    "variance_band": lambda: dict(expected=1.0, dof=10, level=0.05),
+    "correlation_band": lambda: dict(rho=0.1, n=10, level=0.05),
+    "uncentred_correlation_band": lambda: dict(n=10, level=0.05),
+    "normalized_squares": lambda: dict(err=np.ones(3), cov=np.eye(3)),
+    "nees": lambda: dict(err=np.ones(3), cov=np.eye(3)),
+    "nis": lambda: dict(err=np.ones(3), cov=np.eye(3)),
+    "inside_fraction": lambda: dict(values=[0.5, 2.0], lower=0.0, upper=1.0),
+    "format_checks": None,  # a dict of Check objects: its rows are in test_consistency_bands.py
+    # montecarlo (estimate and run take an Experiment: their rows are in test_montecarlo_core.py)
+    "default_workers": lambda: dict(),
+    "chunk_sizes": lambda: dict(chunk=3, n_runs=10),
+    "chunk_generators": lambda: dict(chunk=3, n_runs=10, seed=0),
+    "estimate": None,
+    "run@montecarlo": None,
+}
+
+#: (name, argument) that take any shape (elementwise), where a wrong shape is a valid call
+ANY_SHAPE = {("wrap_angle", "a"), ("acceleration", "t"), ("integrate_left", "acc"), ("phi_power", "k"), ("inside_fraction", "values"),
+             ("t_band", "sd"), ("normal_band", "var"), ("variance_band", "expected"), ("correlation_band", "rho"),
+             ("format_number", "value"), ("arc", "dt")}
+#: (name, argument) where NaN is a valid value (a missing measurement)
+NAN_OK = {("run", "y"), ("run_ekf", "y"), ("run_lkf", "y"), ("run_ukf", "y"), ("run_filter", "y"),
+          ("fit_q_scale", "y"), ("run_batch", "y"), ("format_number", "value"), ("format_matrix", "matrix"),
+          ("format_table", "rows"), ("inside_fraction", "values"),
+          # elementwise arithmetic: NaN in, NaN out (a missing value stays missing)
+          ("wrap_angle", "a"), ("wrap_state", "x"), ("wrap_measurement", "y"), ("state_add", "x"),
+          ("state_add", "dx"), ("state_residual", "a"), ("state_residual", "b"), ("measurement_residual", "a"),
+          ("measurement_residual", "b")}
+
+#: functions whose result holds NaN by design (no measurement at step 0)
+RETURNS_NAN = {"simulate_measurements"}
+
+#: (name, argument): further values that are valid there (a seed of None draws fresh entropy; ``progress``
+#: None means "when the run is long"; an int prints as itself)
+ALSO_VALID = {("run_monte_carlo", "seed"): {"None"}, ("truth_model_test", "seed"): {"None"},
+              ("truth_model_draws", "seed"): {"None"}, ("chunk_generators", "seed"): {"None"}, ("run_monte_carlo", "progress"): {"None"},
+              ("format_number", "value"): {"10**400"}}
+
+#: (name, argument): the name its messages use instead (a log's arrays carry the course's variable names)
+SAID_AS = {("CoopLog", "t"): "tvec", ("CoopLog", "y"): "ydata"}
+
+BAD_VALUES = {"None": None, "NaN": float("nan"), "10**400": 10**400, "wrong shape": np.zeros((2, 3, 7))}
+
+
+#: the problems' parameter and data classes: every field is fuzzed (from the defaults, or a small valid log)
+PARAMS_CLASSES = (CalibrationParams, CoopParams, coop.MeasurementModel, coop.CoopLog)
+
+
+def _exported():
+    out = []
+    for module, names in ((calibration, calibration.__all__), (coop, coop.__all__),
+                          (consistency, consistency.__all__), (montecarlo, montecarlo.__all__)):
+        for name in names:
+            obj = getattr(module, name)
+            if (inspect.isfunction(obj) and not name.startswith("check_")) or obj in PARAMS_CLASSES:
+                out.append((module.__name__.split(".")[-1], name, obj))
+    return out
+
+
+EXPORTED = _exported()
+
+
+def test_every_exported_function_has_a_row():
+    """A new exported function needs its valid call here (or None, with the test that covers it)."""
+    keys = {f"{n}@{m}" if f"{n}@{m}" in VALID else n for m, n, _ in EXPORTED}
+    assert sorted(keys - set(VALID)) == []
+
+
+def _cases():
+    for module, name, fn in EXPORTED:
+        key = f"{name}@{module}" if f"{name}@{module}" in VALID else name
+        if VALID.get(key) is None:
+            continue
+        params = inspect.signature(fn).parameters
+        for arg in params:
+            if params[arg].kind in (inspect.Parameter.VAR_KEYWORD, inspect.Parameter.VAR_POSITIONAL):
+                continue
+            for label in BAD_VALUES:
+                yield pytest.param(key, fn, arg, label, id=f"{module}.{name}({arg}={label})")
+
+
+def _has_nan(value) -> bool:
+    if isinstance(value, tuple):
+        return any(_has_nan(v) for v in value)
+    try:
+        arr = np.asarray(value)
+    except Exception:
+        return False
+    return arr.dtype.kind in "fc" and bool(np.isnan(arr).any())
+
+
+@pytest.mark.parametrize("key, fn, arg, label", list(_cases()))
+def test_bad_argument_is_named(key, fn, arg, label):
+    kwargs = VALID[key]()
+    default = inspect.signature(fn).parameters[arg].default
+    if arg not in kwargs and default is inspect.Parameter.empty:
+        pytest.fail(f"VALID[{key!r}] lacks the required argument {arg}")
+    kwargs[arg] = BAD_VALUES[label]
+    name = key.split("@")[0]
+    allowed = ((label == "None" and default is None) or (label == "wrong shape" and (name, arg) in ANY_SHAPE)
+               or (label == "NaN" and (name, arg) in NAN_OK) or label in ALSO_VALID.get((name, arg), ()))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            result = fn(**kwargs)
+    except (ValueError, TypeError) as exc:
+        message, said = str(exc), SAID_AS.get((name, arg), arg)
+        assert re.search(rf"(^|[^\w]){re.escape(said)}([^\w]|$)", message), (type(exc).__name__, message)
+        assert "\n" not in message
+        return
+    assert allowed, f"{name}({arg}={label}) was accepted"
+    if label != "NaN" and name not in RETURNS_NAN:
+        assert not _has_nan(result), f"{name}({arg}={label}) returned NaN"
