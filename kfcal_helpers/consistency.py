@@ -26,15 +26,14 @@ The Monte Carlo results of every problem share one interface (:class:`MonteCarlo
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 from scipy import stats
 
-from functools import partial
-
-from .validation import (MAX_SEED, MIN_BAND_ALPHA, checked, require_array, require_finite_array, require_int,
-                         require_significance)
+from .validation import (MAX_SEED, MIN_BAND_ALPHA, checked, describe, require_array, require_finite_array,
+                         require_int, require_significance)
 
 __all__ = ["chi2_bounds", "chi2_sum_bounds", "step_checks", "t_band", "normal_band", "variance_band", "correlation_band", "uncentred_correlation_band",
            "normalized_squares", "nees", "nis", "inside_fraction", "Check", "MonteCarloSummary", "format_checks"]
@@ -86,10 +85,13 @@ def chi2_sum_bounds(dof, n, alpha: float = 0.05):
     dof, n = np.asarray(dof), np.asarray(n)
     for name, v in (("dof", dof), ("n", n)):
         if v.dtype.kind not in "iu" or np.any(v < 1):
-            raise ValueError(f"{name} must hold integers >= 1, got {v!r}")
+            raise ValueError(f"{name} must hold integers >= 1, got {describe(v)}")
     return stats.chi2.ppf(alpha / 2, dof) / n, stats.chi2.ppf(1 - alpha / 2, dof) / n
 
 
+@checked(nees=partial(require_finite_array, shape=(None, None)),
+         nis=partial(require_finite_array, shape=(None, None), allow_nan=True),
+         dof=partial(require_finite_array, shape=(None, None)))
 def step_checks(nees, nis, dof, n_states: int, alpha: float = 0.05, extra_entries: int = 0) -> dict:
     """Per-step NEES and NIS checks of N runs whose measurement dimension changes from step to step.
 
@@ -105,16 +107,15 @@ def step_checks(nees, nis, dof, n_states: int, alpha: float = 0.05, extra_entrie
     Returns ``{"nees": Check, "nis": Check}`` (:class:`Check`; ``expected`` is ``n_states`` and the mean
     dof per step).
     """
-    nees, nis = np.asarray(nees, dtype=float), np.asarray(nis, dtype=float)
-    dof = np.asarray(dof)
     if nees.ndim != 2 or nis.shape != nees.shape or dof.shape != nees.shape:
         raise ValueError(f"nees, nis and dof must have the same shape (n_runs, K), got {nees.shape}, {nis.shape}, "
                          f"{dof.shape}")
-    n_states = require_int("n_states", n_states, minimum=1)
+    n_states = require_int("n_states", n_states, minimum=1, maximum=10**6)
     alpha = require_significance("alpha", alpha)
-    extra_entries = require_int("extra_entries", extra_entries, minimum=0)
-    if dof.dtype.kind not in "iu" or np.any(dof < 0):
+    extra_entries = require_int("extra_entries", extra_entries, minimum=0, maximum=10**12)
+    if np.any(dof < 0) or np.any(dof != np.round(dof)):
         raise ValueError("dof must hold integers >= 0")
+    dof = dof.astype(int)
     present = dof > 0
     if np.any(np.isfinite(nis) != present) or not np.isfinite(nees).all():
         raise ValueError("nis must be finite exactly where dof > 0, and nees finite everywhere")

@@ -72,4 +72,4 @@ def test_step_checks_validate():
     with pytest.raises(ValueError, match="n_states"):
         step_checks(nees, nis, dof, 0)
     with pytest.raises(ValueError, match="dof must hold integers"):
-        step_checks(nees, nis, dof.astype(float), 4)
+        step_checks(nees, nis, dof + 0.5, 4)

@@ -111,6 +111,9 @@ VALID = {
         _coop_log()),
     # consistency
     "chi2_bounds": lambda: dict(dim=2, n_samples=10, alpha=0.05),
+    "chi2_sum_bounds": lambda: dict(dof=np.array([3, 6]), n=np.array([1, 2]), alpha=0.05),
+    "step_checks": lambda: dict(nees=np.ones((2, 3)), nis=np.ones((2, 3)), dof=np.full((2, 3), 3), n_states=4,
+                                alpha=0.05, extra_entries=0),
     "t_band": lambda: dict(sd=1.0, n=10, level=0.05),
     "normal_band": lambda: dict(var=1.0, n=10, level=0.05),
     "variance_band": lambda: dict(expected=1.0, dof=10, level=0.05),
