@@ -26,7 +26,9 @@ from traitlets.config import Config  # noqa: E402
 from kfcal_helpers.assignments import answer_cells, generate, read_source, write_course  # noqa: E402
 from kfcal_helpers.calibration.exercises import EXERCISES  # noqa: E402
 
-# nbgrader's own gradebook code warns about its SQLAlchemy sessions; not ours to fix
+# nbgrader 0.9.6's gradebook warns about its SQLAlchemy sessions (SAWarning: "... add operation along
+# 'Assignment.submissions' will not proceed") with every SQLAlchemy 2 (2.0.58 and the pinned 2.1.9 alike):
+# SQLAlchemy 1.4.54 does not, but has no wheels for Python 3.13; not ours to fix
 pytestmark = pytest.mark.filterwarnings("ignore::sqlalchemy.exc.SAWarning")
 
 ROOT = Path(__file__).resolve().parents[1]
