@@ -123,3 +123,30 @@ def test_the_recheck_process_reads_items_and_writes_verdicts():
     assert verdicts == recheck_all(items)
     assert [v["correct"] for v in verdicts] == [True, False]
     assert verdicts[1]["line"] == str(calib.check_gps_dz(0)) and verdicts[1]["line"].startswith("✘ 03.2 not yet: ")
+
+
+def test_every_function_check_replays_in_a_fresh_process():
+    """A check that takes a function calls it on the same inputs in every process (no unseeded randomness,
+    nothing depending on the process), so that its record replays; here with a function that returns its
+    first argument (wrong everywhere, but called on every test input the check has)."""
+    import importlib
+    import inspect
+
+    from kfcal_helpers.assignments import check_modules
+
+    def first(*args, **kwargs):
+        return args[0]
+
+    items, lines = [], []
+    for name, module in sorted(check_modules().items()):
+        check = getattr(importlib.import_module(module), name)
+        if list(inspect.signature(check).parameters)[0] not in ("func", "fn"):
+            continue
+        line, record = make_record("00.0", module, name, first)
+        assert record["answer"]["t"] == "function" and record["answer"]["calls"], name
+        items.append({"exercise": "00.0", "module": module, "check": name, "record": record})
+        lines.append(line)
+    assert len(items) >= 10
+    done = subprocess.run([sys.executable, "-P", "-m", "kfcal_helpers.exercises.grading"],
+                          input=json.dumps(items).encode(), capture_output=True, check=True)
+    assert [v["line"] for v in json.loads(done.stdout)] == lines
