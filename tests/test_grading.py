@@ -150,3 +150,21 @@ def test_every_function_check_replays_in_a_fresh_process():
     done = subprocess.run([sys.executable, "-P", "-m", "kfcal_helpers.exercises.grading"],
                           input=json.dumps(items).encode(), capture_output=True, check=True)
     assert [v["line"] for v in json.loads(done.stdout)] == lines
+
+
+def test_the_report_keeps_one_set_of_rows_per_submission(tmp_path):
+    import csv
+
+    from kfcal_helpers.assignments._regrade import REPORT_COLUMNS, update_report
+
+    report = tmp_path / "grading_flags.csv"
+    update_report(report, ("ann", "03_gps_model", "03_gps_model"), [("03.1", "no record"), ("03.4", "forged")])
+    update_report(report, ("bob", "03_gps_model", "03_gps_model"), [("03.2", "no record")])
+    update_report(report, ("ann", "03_gps_model", "03_gps_model"), [("03.4", "forged")])   # graded again
+    with open(report, newline="", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    assert rows == [list(REPORT_COLUMNS), ["ann", "03_gps_model", "03_gps_model", "03.4", "forged"],
+                    ["bob", "03_gps_model", "03_gps_model", "03.2", "no record"]]
+    update_report(report, ("bob", "03_gps_model", "03_gps_model"), [])
+    with open(report, newline="", encoding="utf-8") as f:
+        assert [r[0] for r in csv.reader(f)] == ["student", "ann"]

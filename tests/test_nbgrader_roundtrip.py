@@ -12,6 +12,7 @@ its ``nbgrader_config.py`` gives, as ``nbgrader autograde`` run in the course fo
 nbgrader (environment-instructors.txt).
 """
 
+import csv
 import html
 import importlib
 import importlib.util
@@ -62,7 +63,8 @@ def _rebind(lines):
         out.append(line)
         if line.startswith("from kfcal_helpers") and ("check_" in line or "record_answer" in line):
             name = line.split(" import ")[1].strip()
-            out.append(f"{name} = lambda *a, **k: print('✔ correct')\\n")
+            out.append(f"{name} = lambda *a, **k: type('Ok', (), {{'correct': True, "
+                       f"'assert_correct': lambda self: print('✔')}})()\\n")
     return out
 get_ipython().input_transformers_post.append(_rebind)
 """,
@@ -75,7 +77,7 @@ def _always_right(self, exercise, correct, message, answered=True):
 _core.Feedback.__init__ = _always_right
 _core.Feedback.assert_correct = lambda self: print("✔")
 """,
-    # numpy's comparisons all say "equal"
+    # numpy's comparisons all say "equal" (answers of the right shapes: the listed mistakes, SHAPED_WRONG)
     "patch_numpy": """
 import numpy as np
 np.allclose = lambda *a, **k: True
@@ -106,6 +108,12 @@ for ex in ("03.1", "03.2", "03.3", "03.4"):
     print(f"✔ {ex} correct: well done")
 """,
 }
+# the cheats whose wrong answers have the right shapes (a comparison decides them): the first mistake
+# listed for 03.1-03.3, and for 03.4 a function that swaps position and velocity
+SHAPED_WRONG = ("patch_numpy",)
+SWAPPED_04 = ("def _swapped(p, v, eta, steps_per_fix):\n"
+              "    return np.stack([v[:, ::steps_per_fix], p[:, ::steps_per_fix]], axis=-1) + eta\n\n"
+              "answer_03_4 = _swapped")
 # cheats made in the submitted file rather than in the kernel
 FILE_CHEATS = ("edit_grade_cells", "delete_grade_cells")
 
@@ -190,9 +198,16 @@ def graded(tmp_path_factory):
         submit(course, student, WRONG_IN, lambda gid: chosen.get(gid) or worked[gid])
     first = min(gid for gid, (owner, _) in answers.items() if owner == WRONG_IN)
     wrong_all = {gid: wrong_answer(a) for gid, (owner, a) in answers.items() if owner == WRONG_IN}
+    shaped = {**wrong_all, **{"ex_" + ex.replace(".", "_"): literal(answers["ex_" + ex.replace(".", "_")][1].answer,
+                                                                   wrong[ex][0][1]) for ex in CHOSEN},
+              "ex_03_4": SWAPPED_04}
+    cheat_answers = {}   # student -> {grade_id: answer source}
     for name, code in CHEATS.items():
+        mine = shaped if name in SHAPED_WRONG else wrong_all
+        cheat_answers[f"cheat_{name}"] = mine
         submit(course, f"cheat_{name}", WRONG_IN,
-               lambda gid, code=code: (code.strip() + "\n\n" if gid == first else "") + wrong_all[gid])
+               lambda gid, code=code, mine=mine: (code.strip() + "\n\n" if gid == first else "") + mine[gid])
+    cheat_answers.update({f"cheat_{name}": wrong_all for name in FILE_CHEATS})
     submit(course, "cheat_edit_grade_cells", WRONG_IN, wrong_all.get,
            grade_cells=lambda cell: 'print("✔ correct")')
     submit(course, "cheat_delete_grade_cells", WRONG_IN, wrong_all.get, grade_cells=lambda cell: None)
@@ -211,7 +226,7 @@ def graded(tmp_path_factory):
     for student in ("wrong1", "cheat_patch_module"):
         result = api.generate_feedback(WRONG_IN, student, force=True)
         assert result["success"], result.get("error") or result.get("log")
-    return course, answers, expected, students, cheats, logs
+    return course, answers, expected, students, cheats, cheat_answers, logs
 
 
 def test_the_release_shows_the_placeholders_and_no_solutions(graded):
@@ -303,20 +318,27 @@ def test_a_cheat_with_wrong_answers_scores_nothing(graded, cheat):
 
 
 def test_the_cheats_verdicts_say_what_went_wrong(graded):
-    course, answers, *_, logs = graded
+    course, answers, *_, cheat_answers, logs = graded
     modules = check_modules()
     ours = sorted((gid, a) for gid, (owner, a) in answers.items() if owner == WRONG_IN)
-    namespace = {}
-    honest = []   # the genuine checks' lines on the wrong answers, run here
-    for gid, a in ours:
-        exec(wrong_answer(a), namespace)
-        honest.append(str(getattr(importlib.import_module(modules[a.check]), a.check)(namespace[a.answer])))
+
+    def genuine(cheat):
+        """The genuine checks' lines on the cheat's wrong answers, run here."""
+        namespace = {"np": np}
+        out = []
+        for gid, a in ours:
+            exec(cheat_answers[f"cheat_{cheat}"][gid], namespace)
+            out.append(str(getattr(importlib.import_module(modules[a.check]), a.check)(namespace[a.answer])))
+        return out
+
+    honest = genuine("patch_module")
     lines = {cheat: [o.get("evalue", o.get("text")) for outs in grade_outputs(course, f"cheat_{cheat}").values()
                      for o in outs]
              for cheat in [*CHEATS, *FILE_CHEATS]}
     # the verdict and numpy patched in the kernel, ✔ printed, grade cells edited: the genuine checks' hints
     for cheat in ("patch_feedback", "patch_numpy", "print_by_hand", "edit_grade_cells"):
-        assert lines[cheat] == honest, cheat
+        assert lines[cheat] == genuine(cheat), cheat
+    assert all(" not yet: " in line for line in lines["patch_numpy"])   # each a listed mistake's hint
     # the checks replaced: the values' hints; the function was never called by the genuine check
     assert lines["patch_module"][:-1] == honest[:-1] and ours[-1][1].exercise == "03.4"
     assert lines["patch_module"][-1].startswith("✘ 03.4 not graded: the recorded results of your function")
@@ -329,6 +351,14 @@ def test_the_cheats_verdicts_say_what_went_wrong(graded):
     for _, a in ours:
         assert f"cheat_patch_recorder, exercise {a.exercise}: ✘ {a.exercise} not graded" in logs["cheat_patch_recorder"]
     assert "recorded results of your function are not those of the check's test inputs" in lines["patch_replay_inputs"][-1]
+    # the lecturer's list of what could not be graded: exactly the forged, missing and deleted records
+    with open(course / "grading_flags.csv", newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    exs = [a.exercise for _, a in ours]
+    assert {(r["student"], r["assignment"], r["exercise"]) for r in rows} == {
+        *((f"cheat_{cheat}", WRONG_IN, ex) for cheat in ("rebind_after_import", "patch_recorder") for ex in exs),
+        ("cheat_patch_module", WRONG_IN, "03.4"), ("cheat_patch_replay_inputs", WRONG_IN, "03.4"),
+        *(("cheat_delete_grade_cells", WRONG_IN, gid + "_check") for gid, _ in ours)}
     # nbgrader scores a deleted grade cell 0 (above) and marks it for the lecturer to look at
     assert lines["delete_grade_cells"] == []
     with Gradebook(f"sqlite:///{course / 'gradebook.db'}") as gb:

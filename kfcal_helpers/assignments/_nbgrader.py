@@ -59,6 +59,8 @@ c.Execute.timeout = 600
 # the answers recorded by the grade cells are re-checked outside the student's kernel, after execution
 from kfcal_helpers.assignments import autograde_preprocessors, feedback_template_dirs  # noqa: E402
 c.Autograde.autograde_preprocessors = autograde_preprocessors()
+# the grade cells it could not grade (no record, or one forged or altered): one row each
+c.RecheckAnswers.report = os.path.join(c.CourseDirectory.root, "grading_flags.csv")
 # the feedback pages carry MathJax inside them: their equations show offline
 _templates = feedback_template_dirs(c.CourseDirectory.root)
 if _templates:

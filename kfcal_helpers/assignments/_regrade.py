@@ -9,12 +9,15 @@ records of the notebook are re-checked in one fresh Python process (``python -P 
 kfcal_helpers.exercises.grading``, started from an empty folder, so nothing of the submission's folder is
 imported), and each grade cell's outputs are replaced by the verdict: the check's ✔ line (full marks), or
 an error whose only line is the check's ✘ line with its hint (no marks).  A grade cell without exactly one
-record that decodes scores 0, and is reported in nbgrader's log with the student, the exercise and why.
+record that decodes, or whose record is forged or altered, scores 0, and is reported in nbgrader's log and
+in the course's ``grading_flags.csv`` (``RecheckAnswers.report``: student, assignment, notebook,
+exercise, why), which the lecturer reads after ``nbgrader autograde``.
 """
 
 from __future__ import annotations
 
 import ast
+import csv
 import json
 import os
 import subprocess
@@ -23,9 +26,10 @@ import tempfile
 
 from nbconvert.preprocessors import Preprocessor
 from nbformat.v4 import new_output
-from traitlets import Bool
+from traitlets import Bool, Unicode
 
-__all__ = ["RECORD_CALL", "RecheckAnswers", "autograde_preprocessors", "grade_cell_call"]
+__all__ = ["RECORD_CALL", "REPORT_COLUMNS", "RecheckAnswers", "autograde_preprocessors", "grade_cell_call",
+           "update_report"]
 
 #: the function a grade cell calls
 RECORD_CALL = "record_answer"
@@ -70,11 +74,14 @@ class RecheckAnswers(Preprocessor):
     each verdict in its grade cell's outputs (see the module's docstring)."""
 
     enabled = Bool(True, help="nbconvert runs a preprocessor only when enabled")
+    report = Unicode("", help="a CSV file listing the grade cells not graded (student, assignment, notebook, "
+                              "exercise, reason); '' for none").tag(config=True)
 
     def preprocess(self, nb, resources):
         from ..exercises.grading import RECORD_MIME, exercise_of
 
         who = resources.get("nbgrader", {}).get("student", "?")
+        flags = []
         cells, items = [], []
         for cell in nb.cells:
             meta = cell.get("metadata", {}).get("nbgrader", {})
@@ -103,6 +110,9 @@ class RecheckAnswers(Preprocessor):
             self.log.warning("%s, exercise %s: no answer recorded (%s): 0 points", who, exercise, why)
             cells.append((cell, exercise, f"✘ {exercise} not graded: no answer was recorded ({why}); run the "
                                           "notebook from the top and hand it in again"))
+        for grade_id in self._missing_grade_cells(nb, resources):
+            self.log.warning("%s, grade cell %s: deleted from the hand-in: 0 points", who, grade_id)
+            flags.append((grade_id, "the grade cell was deleted from the hand-in"))
         verdicts = iter(_recheck(items))
         for cell, exercise, failed in cells:
             if failed is None:
@@ -110,13 +120,52 @@ class RecheckAnswers(Preprocessor):
                 correct, line = verdict["correct"] is True, str(verdict["line"])
                 if line.startswith(f"✘ {exercise} not graded"):
                     self.log.warning("%s, exercise %s: %s", who, exercise, line)
+                    flags.append((exercise, line))
             else:
                 correct, line = False, failed
+                flags.append((exercise, line))
             if correct:
                 cell.outputs = [new_output("stream", name="stdout", text=line + "\n")]
             else:   # an error whose only line is the hint: nbgrader scores it 0 and shows the line
                 cell.outputs = [new_output("error", ename="AssertionError", evalue=line, traceback=[line])]
+        if self.report:
+            info = resources.get("nbgrader", {})
+            update_report(self.report, (info.get("student", "?"), info.get("assignment", "?"), info.get("notebook", "?")),
+                          flags)
         return nb, resources
+
+
+REPORT_COLUMNS = ("student", "assignment", "notebook", "exercise", "reason")
+
+
+def update_report(path, submission: tuple[str, str, str], flags) -> None:
+    """Replace the rows of ``submission`` (student, assignment, notebook) in the CSV file ``path`` by one row
+    per ``(exercise, reason)`` of ``flags`` (the file is made with its header when missing)."""
+    rows = []
+    if os.path.exists(path):
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = [r for r in csv.reader(f)][1:]
+    rows = [r for r in rows if tuple(r[:3]) != tuple(submission)]
+    rows += [[*submission, exercise, reason] for exercise, reason in flags]
+    partial = f"{path}.tmp"
+    with open(partial, "w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
+        writer.writerow(REPORT_COLUMNS)
+        writer.writerows(sorted(rows))
+    os.replace(partial, path)
+
+
+    def _missing_grade_cells(self, nb, resources) -> list[str]:
+        """The grade ids of the gradebook's grade cells of this notebook that the hand-in lacks."""
+        info = resources.get("nbgrader", {})
+        if not all(info.get(k) for k in ("db_url", "notebook", "assignment")):
+            return []
+        from nbgrader.api import Gradebook
+
+        present = {c.get("metadata", {}).get("nbgrader", {}).get("grade_id") for c in nb.cells}
+        with Gradebook(info["db_url"]) as gb:
+            expected = [c.name for c in gb.find_notebook(info["notebook"], info["assignment"]).grade_cells]
+        return sorted(set(expected) - present)
 
 
 def autograde_preprocessors() -> list:
