@@ -134,6 +134,18 @@ class RecheckAnswers(Preprocessor):
                           flags)
         return nb, resources
 
+    def _missing_grade_cells(self, nb, resources) -> list[str]:
+        """The grade ids of the gradebook's grade cells of this notebook that the hand-in lacks."""
+        info = resources.get("nbgrader", {})
+        if not all(info.get(k) for k in ("db_url", "notebook", "assignment")):
+            return []
+        from nbgrader.api import Gradebook
+
+        present = {c.get("metadata", {}).get("nbgrader", {}).get("grade_id") for c in nb.cells}
+        with Gradebook(info["db_url"]) as gb:
+            expected = [c.name for c in gb.find_notebook(info["notebook"], info["assignment"]).grade_cells]
+        return sorted(set(expected) - present)
+
 
 REPORT_COLUMNS = ("student", "assignment", "notebook", "exercise", "reason")
 
@@ -153,19 +165,6 @@ def update_report(path, submission: tuple[str, str, str], flags) -> None:
         writer.writerow(REPORT_COLUMNS)
         writer.writerows(sorted(rows))
     os.replace(partial, path)
-
-
-    def _missing_grade_cells(self, nb, resources) -> list[str]:
-        """The grade ids of the gradebook's grade cells of this notebook that the hand-in lacks."""
-        info = resources.get("nbgrader", {})
-        if not all(info.get(k) for k in ("db_url", "notebook", "assignment")):
-            return []
-        from nbgrader.api import Gradebook
-
-        present = {c.get("metadata", {}).get("nbgrader", {}).get("grade_id") for c in nb.cells}
-        with Gradebook(info["db_url"]) as gb:
-            expected = [c.name for c in gb.find_notebook(info["notebook"], info["assignment"]).grade_cells]
-        return sorted(set(expected) - present)
 
 
 def autograde_preprocessors() -> list:
