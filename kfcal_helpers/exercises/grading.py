@@ -294,7 +294,7 @@ def recheck(exercise: str, module: str, check: str, record) -> tuple[bool, str]:
         return False, f"✘ {exercise} not graded: the check failed on the recorded answer ({type(exc).__name__})"
     if not isinstance(feedback, Feedback):
         return False, f"✘ {exercise} not graded: the check returned no verdict"
-    return feedback.correct is True, str(feedback)
+    return bool(feedback.correct), str(feedback)
 
 
 def recheck_all(items: list[dict]) -> list[dict]:
