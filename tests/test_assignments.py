@@ -233,18 +233,22 @@ def test_outputs_and_a_second_answer_cell_are_refused():
 # the nbgrader conversion (no nbgrader needed)
 # ------------------------------------------------------------------------------------------------
 def test_nbgrader_notebook_has_answer_and_tests_cells_and_no_solutions_link():
+    from kfcal_helpers.assignments._regrade import grade_cell_call
+
     nb = nbgrader_notebook(tiny(), modules={"check_double": "somewhere.exercises"})
     assert [c.source.split("\n")[0] for c in nb.cells] == [   # the checks after the exercises move before them
         "# Lesson", "x = 1", "## Checks", "**Exercise 99.1 — double.** Write f.", "def f(x):",
-        "# the check of exercise 99.1 (2 points): prints ✔ when right, fails with its hint otherwise"]
+        "# the check of exercise 99.1 (2 points): shows ✔ or a hint; the grader checks the recorded answer again"]
     assert nb.cells[0].source == "# Lesson"
     answer, test = nb.cells[4], nb.cells[5]
     assert answer.source == ('def f(x):\n    """twice x"""\n    ...   # replace ... with your code\n'
                              '    ### BEGIN SOLUTION\n    y = 2 * x\n    return y\n    ### END SOLUTION\n\n'
                              'answer_99_1 = f')
     assert answer.metadata["nbgrader"]["solution"] and not answer.metadata["nbgrader"]["grade"]
-    assert test.source.split("\n")[1:] == ["from somewhere.exercises import check_double",
-                                           "check_double(answer_99_1).assert_correct()"]
+    assert test.source.split("\n")[1:] == ["from kfcal_helpers.exercises.grading import record_answer",
+                                           "record_answer('99.1', 'somewhere.exercises', 'check_double', answer_99_1)"]
+    # what the grader reads from it (kfcal_helpers.assignments._regrade)
+    assert grade_cell_call(test.source) == ("99.1", "somewhere.exercises", "check_double")
     assert test.metadata["nbgrader"]["grade"] and test.metadata["nbgrader"]["points"] == 2
     assert test.metadata["nbgrader"]["locked"]
     with pytest.raises(ValueError, match="source cell 5.*no check named check_double"):

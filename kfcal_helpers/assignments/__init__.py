@@ -80,7 +80,9 @@ reader of the sources) are needed to render; nbclient to execute; nbgrader is im
 """
 
 from ._cli import add_parser
-from ._nbgrader import COURSE_ID, INSTRUCTORS_FILE, check_modules, generate, nbgrader_notebook, write_course
+from ._feedback import feedback_template_dirs
+from ._nbgrader import (COURSE_ID, INSTRUCTORS_FILE, autograde_preprocessors, check_modules, generate, nbgrader_notebook,
+                        write_course)
 from ._source import (MARKERS, MAX_CELLS, MAX_METADATA_BYTES, MAX_METADATA_DEPTH, MAX_SOURCE_BYTES, ROLES,
                       SOURCE_SUFFIX, AnswerCell, answer_cells, parse_answer, read_source, render,
                       render_lesson, render_solutions, validate)
@@ -92,4 +94,5 @@ __all__ = ["ROLES", "MARKERS", "SOURCE_SUFFIX", "MAX_SOURCE_BYTES", "MAX_CELLS",
            "answer_cells", "render", "render_lesson", "render_solutions", "NOTEBOOKS", "Target",
            "sources", "targets", "render_source", "comparable", "equal",
            "differing", "merge", "sync", "execute", "COURSE_ID", "INSTRUCTORS_FILE", "check_modules",
-           "nbgrader_notebook", "write_course", "generate", "add_parser", "write_notebook"]
+           "nbgrader_notebook", "write_course", "generate", "add_parser", "write_notebook", "autograde_preprocessors",
+           "feedback_template_dirs"]

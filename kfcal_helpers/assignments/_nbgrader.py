@@ -9,9 +9,13 @@ notebook is the lesson with every answer cell turned into two nbgrader cells:
   release, leaving our placeholder); the check call is removed.  The first one also holds, as a
   solution region, the worked solutions' setup code (their own settings, e.g. ``dt = 0.01``), so that
   the instructor's version, lesson and worked answers together, earns full marks;
-* an *autograder tests* cell worth the exercise's points, which imports the check and runs
-  ``check_xxx(answer).assert_correct()``: silent on success, an ``AssertionError`` whose message is the
-  check's one-line hint otherwise (nbgrader shows it in the feedback).
+* an *autograder tests* cell worth the exercise's points, which calls
+  ``record_answer("NN.k", "kfcal_helpers.<problem>.exercises", "check_xxx", answer)``
+  (:mod:`kfcal_helpers.exercises.grading`): the student sees the check's one-line verdict, and the
+  answer is recorded as data.  The grade is not decided in the student's kernel: the course's
+  ``nbgrader_config.py`` adds :class:`._regrade.RecheckAnswers` to ``nbgrader autograde``, which
+  re-checks every record in a fresh Python process and writes each verdict in its grade cell (the ✔
+  line, or an error whose one line is the check's hint: nbgrader shows it in the feedback).
 
 The sentence that links to the worked solutions ("Worked solutions: [...](...)") is dropped, and the
 lesson cells after the last exercise (the checks of the numbers quoted in the text) move before the
@@ -21,7 +25,6 @@ nbgrader itself (``environment-instructors.txt``) is imported only by :func:`gen
 
 from __future__ import annotations
 
-import ast
 import copy
 import os
 import re
@@ -33,7 +36,7 @@ from ._source import BEGIN_SOLUTION, END_SOLUTION, parse_answer, read_source, va
 from ._sync import located, write_notebook
 
 __all__ = ["COURSE_ID", "INSTRUCTORS_FILE", "SOLUTIONS_LINK", "check_modules", "nbgrader_notebook", "write_course",
-           "generate", "nbgrader_missing", "check_course_dir", "graded"]
+           "generate", "nbgrader_missing", "check_course_dir", "graded", "autograde_preprocessors"]
 
 COURSE_ID = "kfcal"
 #: the pip requirements file that adds nbgrader to environment.txt
@@ -55,6 +58,15 @@ c.CourseDirectory.root = os.path.dirname(os.path.abspath(__file__)) if "__file__
 c.ClearSolutions.code_stub = {{"python": ""}}
 # some lessons run short Monte Carlo runs: allow a cell a few minutes
 c.Execute.timeout = 600
+# the answers recorded by the grade cells are re-checked outside the student's kernel, after execution
+from kfcal_helpers.assignments import autograde_preprocessors, feedback_template_dirs  # noqa: E402
+c.Autograde.autograde_preprocessors = autograde_preprocessors()
+# the grade cells it could not grade (no record, or one forged or altered): one row each
+c.RecheckAnswers.report = os.path.join(c.CourseDirectory.root, "grading_flags.csv")
+# the feedback pages carry MathJax inside them: their equations show offline
+_templates = feedback_template_dirs(c.CourseDirectory.root)
+if _templates:
+    c.HTMLExporter.extra_template_basedirs = _templates
 '''
 #: the first line of the course's ``nbgrader_config.py``: a folder whose config starts with it is a course
 #: this command made (and may make again)
@@ -62,14 +74,18 @@ CONFIG_FIRST_LINE = CONFIG.split("\n", 1)[0]
 
 
 def check_modules(package: Path = _PACKAGE) -> dict[str, str]:
-    """``{check function name: module}`` for every ``check_*`` defined in ``kfcal_helpers/*/exercises.py``
-    (read with :mod:`ast`, nothing imported)."""
+    """``{check function name: module}`` for every ``check_*`` that ``kfcal_helpers.<problem>.exercises`` lists
+    in its ``__all__`` (a module ``exercises.py`` or a package ``exercises/``, imported)."""
+    import importlib
+
     out = {}
-    for path in sorted(package.glob("*/exercises.py")):
-        module = f"{package.name}.{path.parent.name}.exercises"
-        for node in ast.parse(path.read_text(encoding="utf-8")).body:
-            if isinstance(node, ast.FunctionDef) and node.name.startswith("check_"):
-                out[node.name] = module
+    for folder in sorted(p for p in package.iterdir() if p.is_dir()):
+        if not ((folder / "exercises.py").is_file() or (folder / "exercises" / "__init__.py").is_file()):
+            continue
+        module = f"{package.name}.{folder.name}.exercises"
+        for name in getattr(importlib.import_module(module), "__all__", ()):
+            if name.startswith("check_"):
+                out[name] = module
     return out
 
 
@@ -122,9 +138,9 @@ def nbgrader_notebook(nb, modules: dict[str, str] | None = None):
         cells.append(new)
         test = nbformat.v4.new_code_cell(
             f"# the check of exercise {answer.exercise} ({answer.points:g} point{'s' if answer.points != 1 else ''}):"
-            f" prints ✔ when right, fails with its hint otherwise\n"
-            f"from {modules[answer.check]} import {answer.check}\n"
-            f"{answer.check}({answer.answer}).assert_correct()")
+            f" shows ✔ or a hint; the grader checks the recorded answer again\n"
+            f"from kfcal_helpers.exercises.grading import record_answer\n"
+            f"record_answer({answer.exercise!r}, {modules[answer.check]!r}, {answer.check!r}, {answer.answer})")
         test["id"] = (cell.get("id") or grade_id)[:40] + "-check"
         test["metadata"]["nbgrader"] = {"grade": True, "grade_id": grade_id + "_check", "locked": True,
                                         "points": answer.points, "schema_version": 3, "solution": False,
@@ -150,6 +166,14 @@ def _checks_before_exercises(cells):
         while start > 0 and head[start - 1]["cell_type"] == "markdown" and head[start - 1]["source"].startswith("**"):
             start -= 1
     return head[:start] + tail + head[start:]
+
+
+def autograde_preprocessors() -> list:
+    """nbgrader's autograde preprocessors with the re-check of the recorded answers after execution
+    (:func:`._regrade.autograde_preprocessors`; for the course's ``nbgrader_config.py``).  Needs nbgrader."""
+    from ._regrade import autograde_preprocessors as preprocessors
+
+    return preprocessors()
 
 
 def nbgrader_missing() -> str | None:
