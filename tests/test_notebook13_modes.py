@@ -103,7 +103,9 @@ def test_with_another_valid_log(make, tmp_path, monkeypatch):
 def test_course_log_fingerprint_tells_logs_apart():
     """is_course_log: the generated log and small changes of a log are not the course's."""
     generated = simulate().log()
-    assert not is_course_log(generated) and not is_course_log("not a log")
+    assert not is_course_log(generated)
+    with pytest.raises(ValueError, match="log must be a CoopLog"):   # not a log at all: named, not a verdict
+        is_course_log("not a log")
     path = course_log_path()
     if path is None:
         return

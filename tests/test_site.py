@@ -370,8 +370,12 @@ def test_output_figures_open_full_size(site):
 
 
 def _heading(path: Path, pattern: str) -> str | None:
-    """The first markdown line of ``path`` (a MyST source) that matches ``pattern``, without it."""
-    for line in path.read_text(encoding="utf-8").splitlines():
+    """The first markdown line of ``path`` (a MyST source) after its front matter that matches ``pattern``,
+    without it (a YAML comment in the front matter is no heading)."""
+    lines = path.read_text(encoding="utf-8").splitlines()
+    if lines and lines[0] == "---":
+        lines = lines[lines.index("---", 1) + 1:]
+    for line in lines:
         match = re.fullmatch(pattern, line)
         if match:
             return match.group(1)
