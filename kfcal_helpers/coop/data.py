@@ -5,7 +5,8 @@ Course format (variables / files):
 * ``ydata`` -- 5 x K measurements, one column per time (rad, m, rad, m, m); the first
   column (t = 0) is NaN, and any all-NaN column means "no measurement at that step";
 * ``tvec`` -- 1 x K times, s, uniformly spaced;
-* ``Qtrue`` -- 6 x 6 per-step process-noise covariance; ``Rtrue`` -- 5 x 5 measurement noise.
+* ``Qtrue`` -- 6 x 6 covariance of the DT process noise w_k (the state receives ``Omega Qtrue Omega^T = dt^2 Qtrue``
+  per step); ``Rtrue`` -- 5 x 5 measurement noise.
 
 As CSV: ``ydata.csv``, ``tvec.csv``, ``Qtrue.csv``, ``Rtrue.csv`` in one folder.
 Inside the package a log is a :class:`CoopLog` with one *row* per time.
