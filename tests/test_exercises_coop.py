@@ -485,14 +485,15 @@ def test_other_valid_forms_are_accepted():
     assert exercises.check_mc_bounds(right_10_1().ravel()).correct
     assert exercises.check_obs_rank([int(r) for r in right_09_3()]).correct
     assert exercises.check_circular_mean(lambda a, w: np.array([circ_right(a, w)])).correct
-    # the function may modify its inputs in place
+    # a function that modifies its inputs in place is told so, by the input's name (issue 32)
     def in_place(a, b):
         a -= b
         a[[0, 2]] = wrap(a[[0, 2]])
         return a
 
-    assert exercises.check_ekf_residual(in_place).correct
-    assert exercises.check_ekf_residual(in_place).correct  # the check's own inputs are unchanged
+    for _ in range(2):  # the check's own inputs are unchanged: the same verdict twice
+        fb = exercises.check_ekf_residual(in_place)
+        assert not fb.correct and "don't modify your inputs" in fb.message and " a;" in fb.message, str(fb)
 
 
 def _wrong_cases():

@@ -30,7 +30,7 @@ from scipy import stats
 
 from ..consistency import chi2_bounds
 from ..exercises._core import (PLACEHOLDER, Exercise, Feedback, as_array, call_student, chi2_average_bounds, distinct_mistakes,
-                               unanswered)
+                               shape_hint, too_large, unanswered)
 from ..validation import (require_covariance, require_finite, require_instance, require_int, require_positive,
                           require_probability)
 from .batch_estimate import batch_conditioning
@@ -73,17 +73,22 @@ __all__ = [
 # shared helpers
 # ----------------------------------------------------------------------------------------
 def _numeric(ex: Exercise, answer, expected, wrong=(), *, rtol: float = 1e-6, atol: float = 1e-12,
-             placeholder: str = PLACEHOLDER) -> Feedback:
+             placeholder: str = PLACEHOLDER, shape_key: str | None = None) -> Feedback:
     """``ex.judge`` with ``wrong`` as ``(mistake key, value)`` pairs, plus the answer judge() would
-    misread: a matrix of the right size but another shape (transposed or flat).  Everything that is
+    misread: a matrix of the right size but another shape (transposed or flat; the hint ``shape_key`` of
+    ``ex`` when given, else :func:`shape_hint`).  An answer larger than every expected value is judged
+    from its shape before any conversion.  Everything that is
     not real finite numbers is judge()'s (the harness screens it in one place)."""
     if unanswered(answer):
         return ex.unanswered(placeholder)
     e = np.asarray(expected, dtype=float)
+    big = too_large(answer, e, *(v for _, v in wrong))  # before any conversion: a broadcast view costs nothing yet
+    if big is not None:
+        return ex.feedback(False, big)
     a = as_array(answer)
     if a is not None and np.all(np.isfinite(a)):
         if e.ndim == 2 and a.size == e.size and np.squeeze(a).shape != e.shape:
-            return ex.feedback(False, f"expected shape {e.shape}, got {a.shape}")
+            return ex.mistake(shape_key) if shape_key else ex.feedback(False, shape_hint(a.shape, e.shape))
     return ex.judge(answer, expected, [(v, k) for k, v in wrong], rtol=rtol, atol=atol, placeholder=placeholder)
 
 
@@ -667,10 +672,7 @@ def check_first_gain(answer, *, V=((4.0, 0.0), (0.0, 0.01))) -> Feedback:
              ("no_p_in_s", M0 @ H.T @ np.linalg.inv(V)), ("no_p", H.T @ np.linalg.inv(H @ M0 @ H.T + V))]
     if np.allclose(V, m.V):
         wrong = wrong[1:]
-    fb = _numeric(_FIRST_GAIN, answer, right, wrong)
-    if not fb.correct and fb.answered and fb.message.startswith("expected shape"):
-        return _FIRST_GAIN.mistake("shape")
-    return fb
+    return _numeric(_FIRST_GAIN, answer, right, wrong, shape_key="shape")
 
 
 _SECOND_GAIN = Exercise(

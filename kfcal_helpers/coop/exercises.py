@@ -64,7 +64,7 @@ from .model import (
     wrap_state,
 )
 from ..exercises._core import (GENERIC_HINT, Exercise, Feedback, as_array, call_student, chi2_average_bounds, distinct_mistakes, matches,
-                               unanswered)
+                               too_large, unanswered)
 from ..validation import require_finite, require_instance, require_int, require_positive, require_probability, require_shape
 
 __all__ = [
@@ -126,7 +126,10 @@ _BOUNDS_RTOL = 1e-9  # chi-square bounds: the computed quantiles (no rounding)
 
 
 def _finite_of_size(answer, size):
-    """``answer`` as a flat float array when it has ``size`` finite entries, else None."""
+    """``answer`` as a flat float array when it has ``size`` finite entries, else None (a larger answer
+    before any conversion)."""
+    if too_large(answer, np.zeros(size)) is not None:
+        return None
     a = as_array(answer)
     if a is None or a.size != size or not np.all(np.isfinite(a)):
         return None
