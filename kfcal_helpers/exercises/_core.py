@@ -29,8 +29,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from . import _limits
-from ._limits import TIME_LIMIT
+from ._limits import (TIME_LIMIT, TimeLimitExceeded, can_interrupt, changed_input, copies, run_limited, time_limit,
+                      time_limit_hint)
 from ._slips import component_hint, slip_hint
 
 __all__ = ["Feedback", "Exercise", "unanswered", "as_array", "answer_problem", "matches", "is_rounding", "judge",
@@ -229,8 +229,8 @@ def too_large(answer, *expected) -> str | None:
 
 def _exception_hint(exc: BaseException) -> str:
     """The one-line verdict on an exception raised by the student's code (any BaseException but Ctrl-C)."""
-    if isinstance(exc, _limits.TimeLimitExceeded):
-        return _limits.time_limit_hint(_limits.TIME_LIMIT, _limits.can_interrupt())
+    if isinstance(exc, TimeLimitExceeded):
+        return time_limit_hint(time_limit(), can_interrupt())
     if isinstance(exc, SystemExit):
         return ("your function called exit() or sys.exit() (SystemExit) on the test input: a function returns its "
                 "result, it never ends the program")
@@ -249,7 +249,7 @@ def call_student(exercise: str, func, cases, what: str = "your function", conver
     Returns ``(outputs, None)`` with one output per case, or ``(None, Feedback)`` when the function
     is still the placeholder, is not callable, raises anything but ``KeyboardInterrupt`` (``SystemExit``
     included: the exception's name and first line become the hint), runs past the time limit
-    (:data:`TIME_LIMIT`; :func:`~kfcal_helpers.exercises._limits.run_limited`), modifies one of its inputs
+    (:data:`TIME_LIMIT`; :func:`~kfcal_helpers.exercises.run_limited`), modifies one of its inputs
     (the hint names it), returns the placeholder (None or ...), or returns numbers that cannot be judged
     (far more entries than the test input calls for, read before any conversion; complex, too large for
     a float, NaN or inf; :func:`answer_problem`).  Each call gets deep copies of the case's arguments, so
@@ -266,19 +266,19 @@ def call_student(exercise: str, func, cases, what: str = "your function", conver
     for args in cases:
         if convert is not None:
             args = tuple(convert(a) for a in args)
-        kept, given = _limits.copies(args), _limits.copies(args)
+        kept, given = copies(args), copies(args)
         cap = max(MAX_OUTPUT_ENTRIES, 10 * sum(_cheap_size(a) or 1 for a in args))
-        report = (f"{exercise}: your function has run for more than {_limits.TIME_LIMIT:g} s on a small test input "
+        report = (f"{exercise}: your function has run for more than {time_limit():g} s on a small test input "
                   "and this platform cannot stop it: interrupt the kernel and look for a loop that never ends")
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")
-            out, exc = _limits.run_limited(func, given, report=report)
+            out, exc = run_limited(func, given, report=report)
             why = None
             if exc is None:  # the screening converts the output: a student's class may run (and fail) there too
-                why, exc = _limits.run_limited(lambda o: _screen_function_output(o, cap=cap), (out,))
+                why, exc = run_limited(lambda o: _screen_function_output(o, cap=cap), (out,))
         if exc is not None:  # a half-written function: name the exception, never crash
             return None, Feedback(exercise, False, _exception_hint(exc))
-        name = _limits.changed_input(func, kept, given)
+        name = changed_input(func, kept, given)
         if name is not None:
             return None, Feedback(exercise, False, f"don't modify your inputs: your function changed {name}; work on "
                                                    f"a copy ({name} = {name}.copy()) or build a new array")
