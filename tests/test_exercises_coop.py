@@ -655,9 +655,10 @@ def test_small_physical_errors_get_method_hints_and_only_roundings_are_told_so()
     slips = [right + d for d in np.eye(6)[[2, 5]] * 0.035] + [right + d for d in np.eye(6)[[0, 3]] * 0.03]
     slip = right.copy()
     slip[1] = 2 * x[1] - right[1]  # the north displacement with the wrong sign
-    for answer in [*slips, slip]:
+    names = ["theta_g", "theta_a", "xi_g", "xi_a", "eta_g"]   # issue 32: the hint names the slipped component
+    for answer, name in zip([*slips, slip], names):
         fb = exercises.check_step_map(answer)
-        assert not fb.correct and fb.message == GENERIC_HINT, (answer, str(fb))
+        assert not fb.correct and fb.message.startswith("only the ") and f"{name} is off" in fb.message, (answer, str(fb))
     for decimals in (2, 3, 5):
         assert exercises.check_step_map(np.round(right, decimals)).message == ROUNDED_HINT
     no_sinc = wrong_08_1()["no_sinc"]
@@ -679,3 +680,29 @@ def test_the_right_value_as_complex_is_not_right(exercise):
             answer = np.asarray(right, dtype=float) + 1e-3j
         fb = check(answer)
         assert not fb.correct and "complex" in fb.message, str(fb)
+
+
+# --------------------------------------------------------------------------------------------
+# issue 32: 08.1's small slips named by component; degrees for radians
+# --------------------------------------------------------------------------------------------
+def _step_right():
+    from kfcal_helpers.coop.model import step
+
+    return step(np.array(exercises.STEP_X), np.array(exercises.STEP_U), exercises.STEP_DT, 0.5)
+
+
+@pytest.mark.parametrize("delta, words", [
+    ((0, 0, 0.035, 0, 0, 0), "only the UGV's heading theta_g is off"),
+    ((0, 0, 0, 0, 0, -0.035), "only the UAV's heading theta_a is off"),
+    ((0, 0, 0, 0.03, 0.03, 0), "only the UAV's east position xi_a and the UAV's north position eta_a are off"),
+    ((0.03, 0, 0, 0, 0, 0), "only the UGV's east position xi_g is off"),
+])
+def test_step_map_names_the_component_that_slipped(delta, words):
+    fb = exercises.check_step_map(_step_right() + np.array(delta))
+    assert not fb.correct and fb.message.startswith(words), str(fb)
+
+
+def test_step_map_headings_in_degrees_get_the_degree_hint():
+    right = _step_right()
+    fb = exercises.check_step_map(np.where([0, 0, 1, 0, 0, 1], np.degrees(right), right))
+    assert not fb.correct and "in degrees" in fb.message, str(fb)

@@ -205,6 +205,7 @@ _IMU_OUTPUT = Exercise(
         "broadcast": "b has one entry per realization (rows of w): give it a column axis, b[:, None], before "
                      "adding it to the (n, n_imu) array",
         "shape": "a_c has one row per realization and one column per sample: the shape of w",
+        "transposed": "your a_c is transposed: one row per realization and one column per sample, as w",
     },
 )
 
@@ -225,9 +226,11 @@ def check_imu_output(func) -> Feedback:
     got = as_array(out)
     if got is None or isinstance(out, (str, bytes)):
         return ex.mistake("shape")
+    right = a + b[:, None] + w
+    if got.shape == w.T.shape and close(got.T, right):
+        return ex.mistake("transposed")
     if got.shape != w.shape:
         return ex.mistake("broadcast" if got.shape == w.T.shape else "shape")
-    right = a + b[:, None] + w
     if close(got, right):
         return ex.feedback(True)
     variants = [("bias_sign", a - b[:, None] + w), ("noise_sign", a + b[:, None] - w),

@@ -14,21 +14,25 @@ from ..params import CalibrationParams
 from ._shared import call_once, close, numeric
 
 
+#: 03.1's numbers, their one home: the GPS rate (Hz) of the exercise (the check's default, its praise and
+#: hints read it; tests/test_exercises_calibration.py checks that the source notebook's text and solution agree)
+GPS_FIX_RATE = 4.0
+
 _GPS_FIX_INDICES = Exercise(
     "03.1",
-    praise="those are the IMU samples that carry a 4 Hz fix",
+    praise=f"those are the IMU samples that carry a {GPS_FIX_RATE:g} Hz fix",
     hint="the fixes sit on every (f_imu/f_gps)-th IMU sample, from t = 0 to t = T",
     hints={
         "no_last": "the last fix, at t = T, is included (n_imu = T·f_imu + 1 samples)",
         "no_first": "the first fix is at t = 0, on IMU sample 0",
         "times": "give IMU sample indices (integers), not times in seconds",
-        "rate": "use the exercise's GPS rate (4 Hz): the spacing is f_imu/f_gps samples",
+        "rate": f"use the exercise's GPS rate ({GPS_FIX_RATE:g} Hz): the spacing is f_imu/f_gps samples",
         "one_based": "indices start at 0 (Python), not at 1",
     },
 )
 
 
-def check_gps_fix_indices(answer, *, gps_rate: float = 4.0) -> Feedback:
+def check_gps_fix_indices(answer, *, gps_rate: float = GPS_FIX_RATE) -> Feedback:
     """Exercise 03.1: the IMU sample indices (ints, shape (n_gps,)) that carry a GPS fix for a
     200 Hz IMU, GPS at ``gps_rate`` (Hz, dividing 200), over 30 s."""
     p = CalibrationParams(gps_rate=require_positive("gps_rate", gps_rate))

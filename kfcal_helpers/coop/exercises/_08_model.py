@@ -18,6 +18,7 @@ from ..model import (
     wrap_measurement,
     wrap_state,
 )
+from ...exercises._slips import slip_hint
 from ...exercises._core import (Exercise, Feedback, as_array, call_student, distinct_mistakes, unanswered)
 from ...validation import require_positive, require_shape
 from ._shared import FN_ATOL, FN_RTOL, MEAS_X, NUM_ATOL, NUM_RTOL, STEP_DT, STEP_U, STEP_X, pi_for_minus_pi, wrap_answer
@@ -43,6 +44,10 @@ def _arc_variant(x, u, dt, L, *, length="sinc", heading="mid", yaw_L=True, trig=
     return wrap_state(out)
 
 
+#: the state's entries by name, for the hints that name the wrong ones (08.1)
+STATE_NAMES = ("the UGV's east position xi_g", "the UGV's north position eta_g", "the UGV's heading theta_g",
+               "the UAV's east position xi_a", "the UAV's north position eta_a", "the UAV's heading theta_a")
+
 STEP_MAP = Exercise(
     "08.1",
     praise="each vehicle moved along the chord of its arc (the UAV, with omega = 0, on a straight line)",
@@ -56,6 +61,8 @@ STEP_MAP = Exercise(
         "wrap": "right position, but wrap the headings to (-pi, pi]",
         "nan": "NaN or inf in your answer: the form v/omega divides by zero when omega = 0 (the UAV flies straight); use the sinc form",
     },
+    components=STATE_NAMES,
+    angles=(2, 5),
 )
 
 
@@ -74,6 +81,10 @@ def check_step_map(answer, *, x=STEP_X, u=STEP_U, dt: float = STEP_DT, L: float 
     a = as_array(answer)
     if not unanswered(answer) and a is not None and a.size == N_STATES and not np.all(np.isfinite(a)):
         return E.mistake("nan")
+    if a is not None and a.size == N_STATES and np.all(np.isfinite(a)):  # headings in degrees: before any wrapping
+        deg = slip_hint(a, expected, rtol=NUM_RTOL, atol=NUM_ATOL, angles=E.angles, scales=False, reverse=False)
+        if deg is not None:
+            return E.feedback(False, deg)
     answer, unwrapped = wrap_answer(answer, expected, wrap_state)
     if unwrapped:
         return E.mistake("wrap")
