@@ -321,3 +321,19 @@ def test_a_huge_view_costs_a_child_no_memory(module, name, kind, tmp_path):
     grown, verdict = r.stdout.strip().splitlines()[-1].split(" ", 1)
     assert verdict.startswith("✘ ") and " not yet: " in verdict, verdict
     assert int(grown) < 50e6, (name, int(grown) / 1e6, verdict)
+
+
+def test_every_lesson_with_a_function_exercise_states_the_time_limit():
+    """The exercise introduction of each lesson whose exercises take a function states the limit the
+    harness applies (its one home: TIME_LIMIT)."""
+    from pathlib import Path
+
+    from kfcal_helpers.exercises import TIME_LIMIT
+
+    sources = sorted((Path(__file__).parents[1] / "notebooks" / "source").glob("*.md"))
+    names = [label.split(".")[1] for label in FUNCTION_CHECKS]
+    with_functions = [p for p in sources if any(f"{name}(" in p.read_text(encoding="utf-8") for name in names)]
+    assert len(with_functions) >= 9
+    for path in with_functions:
+        text = path.read_text(encoding="utf-8")
+        assert f"stopped after {TIME_LIMIT:g} s" in text and "changes its inputs is told which" in text, path.name
