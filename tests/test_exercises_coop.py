@@ -263,6 +263,7 @@ def wrong_10_1():
         "normal": np.array([[n - z * math.sqrt(2 * n / N), n + z * math.sqrt(2 * n / N)] for n in (6, 5)]),
         "notebook_N": np.array([avg_bounds(6, 50, 0.05), avg_bounds(5, 50, 0.05)]),
         "one_run": np.array([[chi2_ppf(0.025, n), chi2_ppf(0.975, n)] for n in (6, 5)]),   # chi2(n), not averaged
+        "dim6": np.array([avg_bounds(6, N, 0.05), avg_bounds(6, N, 0.05)]),   # the NIS with the state's dimension
     }
 
 
@@ -706,3 +707,4 @@ def test_step_map_headings_in_degrees_get_the_degree_hint():
     right = _step_right()
     fb = exercises.check_step_map(np.where([0, 0, 1, 0, 0, 1], np.degrees(right), right))
     assert not fb.correct and "in degrees" in fb.message, str(fb)
+

@@ -44,6 +44,7 @@ MC_BOUNDS = Exercise(
         "notebook_N": "those are the bounds for the notebook's N = 50: use this exercise's number of runs",
         "one_run": "those are the bounds of a single run: the average of N runs has N*n degrees of freedom (not n), "
                    "and its quantiles are divided by N",
+        "dim6": "the NIS has the dimension of the measurement, not of the state",
     },
 )
 
@@ -73,6 +74,7 @@ def check_mc_bounds(answer, *, n_runs: int = MC_RUNS, alpha: float = 0.05) -> Fe
     if abs(alpha - 0.05) < 1e-12:  # the same with the usual 1.96
         pairs.append((np.array([normal_bounds(N_STATES, N, alpha, 1.96), normal_bounds(N_MEAS, N, alpha, 1.96)]),
                       "normal"))
+    pairs.append((np.array([expected[0], chi2_bounds(N_STATES, N, alpha)]), "dim6"))  # the NIS with the state's 6
     if N != 50:
         pairs.append((np.array([chi2_bounds(N_STATES, 50, alpha), chi2_bounds(N_MEAS, 50, alpha)]), "notebook_N"))
     return replace(MC_BOUNDS, praise=MC_BOUNDS.praise.format(N=N)).judge(answer, expected, pairs, rtol=BOUNDS_RTOL,
