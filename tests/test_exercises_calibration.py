@@ -202,7 +202,8 @@ def cases():
                     ("z_space", np.arctanh(0.8) + np.array([-z, z]) / np.sqrt(297)),
                     ("one_sided", np.tanh(np.arctanh(0.8) + np.array([-1.6448536269514722, 1.6448536269514722])
                                           / np.sqrt(297))),
-                    ("z_rounded", np.tanh(np.arctanh(0.8) + np.array([-1.96, 1.96]) / np.sqrt(297)))], [])
+                    ("z_rounded", np.tanh(np.arctanh(0.8) + np.array([-1.96, 1.96]) / np.sqrt(297))),
+                    ("z_two", np.tanh(np.arctanh(0.8) + np.array([-2.0, 2.0]) / np.sqrt(297)))], [])
     # 06.3 --------------------------------------------------------------------------------
     lvl = 0.05 / 1057
     out["06.3"] = (ex.check_simultaneous_nees_band, two_sided(3000, 1000, lvl),

@@ -51,6 +51,8 @@ _FISHER_BAND = Exercise(
         "one_sided": "a two-sided 95 % band uses the 97.5 % normal quantile (1.96)",
         "z_rounded": "right method, but with the normal quantile rounded: compute it (scipy.stats.norm.ppf), and "
                      "pass the value you computed, with no rounding",
+        "z_two": "right method, but z = 2 is not the quantile: the two-sided 95 % band uses the 97.5 % normal quantile "
+                 "(scipy.stats.norm.ppf)",
     },
 )
 
@@ -71,6 +73,7 @@ def check_fisher_band(answer, *, rho: float = 0.8, n_runs: int = 300, alpha: flo
              ("one_sided", np.tanh(np.arctanh(rho) + pm * stats.norm.ppf(1 - alpha) / np.sqrt(N - 3)))]
     for digits in (2, 3):  # 1.96 or 1.960 typed for the quantile
         wrong.append(("z_rounded", np.tanh(np.arctanh(rho) + pm * round(z, digits) / np.sqrt(N - 3))))
+    wrong.append(("z_two", np.tanh(np.arctanh(rho) + pm * 2.0 / np.sqrt(N - 3))))   # the "two sigma" rule
     return numeric(_FISHER_BAND, answer, right, wrong)
 
 
