@@ -708,3 +708,18 @@ def test_step_map_headings_in_degrees_get_the_degree_hint():
     fb = exercises.check_step_map(np.where([0, 0, 1, 0, 0, 1], np.degrees(right), right))
     assert not fb.correct and "in degrees" in fb.message, str(fb)
 
+
+
+def test_08_2_catches_bearings_wrapped_to_0_2pi_and_the_source_states_its_x():
+    from pathlib import Path
+
+    from kfcal_helpers.coop.model import measure
+
+    right = measure(np.array(exercises.MEAS_X))
+    assert right[0] < 0 or right[2] < 0   # a negative bearing: [0, 2pi) differs from (-pi, pi]
+    fb = exercises.check_measurement(np.where([1, 0, 1, 0, 0], np.mod(right, 2 * np.pi), right))
+    assert not fb.correct and fb.message == HINTS["08.2"]["wrap"], str(fb)
+    text = (Path(__file__).parents[1] / "notebooks" / "source" / "08_coop_nonlinear_model.md").read_text(encoding="utf-8")
+    x = exercises.MEAS_X
+    assert "x = np.array([" + ", ".join(f"{v:.1f}" for v in x) + "])" in text
+    assert "$x = [" + ",\\ ".join(f"{v:g}" if v != x[5] else f"{v:.1f}" for v in x) + "]^T$" in text

@@ -24,7 +24,7 @@ STEP_X = (2.0, 1.0, 3.0, -30.0, 40.0, -0.5)
 STEP_U = (1.0, math.pi / 8, 8.0, 0.0)
 STEP_DT = 0.5
 #: 08.2: the configuration whose measurement vector is asked
-MEAS_X = (5.0, -3.0, 2.5, -20.0, -10.0, -1.0)
+MEAS_X = (5.0, -3.0, 2.5, -20.0, -10.0, 1.0)  # the UAV's bearing is negative: [0, 2pi) wrapping shows
 #: 09.1: the configuration of the bearing row of C
 ROW_X = (3.0, -4.0, 0.7, 15.0, 1.0, 2.0)
 #: 09.2: the state and the other sampling interval
