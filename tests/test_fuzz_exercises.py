@@ -334,6 +334,8 @@ def test_every_lesson_with_a_function_exercise_states_the_time_limit():
     names = [label.split(".")[1] for label in FUNCTION_CHECKS]
     with_functions = [p for p in sources if any(f"{name}(" in p.read_text(encoding="utf-8") for name in names)]
     assert len(with_functions) >= 9
+    readme = (Path(__file__).parents[1] / "README.md").read_text(encoding="utf-8")
+    assert f"stopped after {TIME_LIMIT:g} s" in readme
     for path in with_functions:
         text = path.read_text(encoding="utf-8")
         assert f"stopped after {TIME_LIMIT:g} s" in text and "changes its inputs is told which" in text, path.name
