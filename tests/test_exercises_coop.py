@@ -250,6 +250,18 @@ def right_10_1():
     return np.array([avg_bounds(6, N, 0.05), avg_bounds(5, N, 0.05)])
 
 
+_Q_TRUE = np.diag([0.001, 0.001, 0.01, 0.001, 0.001, 0.01])   # the course's Qtrue, typed from the notebook
+
+
+def right_09_4():
+    Om = 0.05 * np.eye(6)   # Omega = dT I at the exercise's dT = 0.05 s
+    return Om @ _Q_TRUE @ Om.T
+
+
+def wrong_09_4():
+    return {"one_dt": 0.05 * _Q_TRUE, "no_omega": _Q_TRUE, "notebook_dt": 0.01 * _Q_TRUE, "divided": _Q_TRUE / 0.05**2}
+
+
 def wrong_10_1():
     N, z = coop.MC_RUNS, 1.959963984540054
     right = right_10_1()
@@ -419,6 +431,7 @@ CHECKS = {
     "09.1": (exercises.check_bearing_row, False),
     "09.2": (exercises.check_F_dt, False),
     "09.3": (exercises.check_obs_rank, False),
+    "09.4": (exercises.check_omega_q, False),
     "10.1": (exercises.check_mc_bounds, False),
     "10.2": (exercises.check_lkf_innovation, True),
     "11.1": (exercises.check_ekf_residual, True),
@@ -430,10 +443,12 @@ CHECKS = {
 }
 
 RIGHT = {"08.1": right_08_1, "08.2": right_08_2, "09.1": right_09_1, "09.2": right_09_2, "09.3": right_09_3,
+         "09.4": right_09_4,
          "10.1": right_10_1, "10.2": lambda: lkf_right, "11.1": lambda: residual_arctan2, "11.2": right_11_2,
          "12.1": right_12_1, "12.2": lambda: circ_right}
 
 WRONG = {"08.1": wrong_08_1, "08.2": wrong_08_2, "09.1": wrong_09_1, "09.2": wrong_09_2, "09.3": wrong_09_3,
+         "09.4": wrong_09_4,
          "10.1": wrong_10_1, "10.2": wrong_10_2, "11.1": wrong_11_1, "11.2": wrong_11_2, "12.1": wrong_12_1,
          "12.2": wrong_12_2}
 

@@ -16,9 +16,9 @@ from ..model import (
     nominal_trajectory,
     observability_matrix,
 )
-from ...exercises._core import (Exercise, Feedback)
+from ...exercises._core import Exercise, Feedback, distinct_mistakes
 from ...validation import require_int, require_positive, require_shape
-from ._shared import FDT_DT, FDT_X, NUM_ATOL, NUM_RTOL, RANK_ROWS, RANK_WINDOWS, ROW_X, U0_DEFAULT, finite_of_size
+from ._shared import FDT_DT, FDT_X, NUM_ATOL, OMEGA_DT, NUM_RTOL, RANK_ROWS, RANK_WINDOWS, ROW_X, U0_DEFAULT, finite_of_size
 
 
 BEARING_ROW = Exercise(
@@ -153,5 +153,28 @@ def check_obs_rank(answer, *, windows=RANK_WINDOWS, start: int = 0) -> Feedback:
     return OBS_RANK.judge(answer, expected, wrong)
 
 
+OMEGA_Q = Exercise(
+    "09.4",
+    praise="Omega = dT I scales the noise's standard deviation by dT, so its covariance by dT²",
+    hints={
+        "one_dt": "Omega appears twice, on each side of Q: the covariance scales by dT², not dT",
+        "no_omega": "that is Qtrue, the covariance of w_k; the state receives Omega w_k, with Omega = dT I",
+        "notebook_dt": "use the exercise's sample period, not the notebook's 0.1 s",
+        "divided": "Omega = dT I multiplies: Omega Qtrue Omega^T = dT² Qtrue, not Qtrue / dT²",
+    },
+)
+
+
+def check_omega_q(answer, *, dt: float = OMEGA_DT) -> Feedback:
+    """09.4: the per-step state-noise covariance ``Omega Qtrue Omega^T`` (6, 6), in the units of Qtrue
+    times s², of the course's model (``Omega = dt I``) for the sample period ``dt`` (s)."""
+    dt = require_positive("dt", dt)
+    p = CoopParams(dt=dt)
+    expected = p.process_noise()
+    Q = p.Qtrue
+    pairs = [(dt * Q, "one_dt"), (Q, "no_omega"), (0.01 * Q, "notebook_dt"), (Q / dt**2, "divided")]
+    return OMEGA_Q.judge(answer, expected, distinct_mistakes(pairs, expected, 1e-9), rtol=NUM_RTOL, atol=1e-15)
+
+
 #: the exercise records of this lesson, in notebook order
-RECORDS = (BEARING_ROW, F_DT, OBS_RANK)
+RECORDS = (BEARING_ROW, F_DT, OBS_RANK, OMEGA_Q)

@@ -24,6 +24,7 @@ exercise   check                                     answer
 09.1       :func:`check_bearing_row`                 first row of C, (6,)
 09.2       :func:`check_F_dt`                        F for another dt, (6, 6)
 09.3       :func:`check_obs_rank`                    ranks for two windows, (2,)
+09.4       :func:`check_omega_q`                     Omega Qtrue Omega^T for dT = 0.05 s, (6, 6)
 10.1       :func:`check_mc_bounds`                   NEES and NIS bounds, (2, 2)
 10.2       :func:`check_lkf_innovation`              function (y, y_nom, H, dx) -> (5,)
 11.1       :func:`check_ekf_residual`                function (a, b) -> (5, 1)
@@ -42,10 +43,10 @@ lists its records in ``RECORDS``, and this package re-exports every name, so
 ``from kfcal_helpers.coop.exercises import check_...`` is the one import path.
 """
 
-from ._shared import EKF_T, EKF_X, FDT_DT, FDT_X, LOG_ALPHA, LOG_SAMPLES, MC_RUNS, MEAS_X, MERWE, RANK_ROWS, RANK_WINDOWS, ROW_X, SPARSE_EVERY, SPARSE_SAMPLES, STEP_DT, STEP_U, STEP_X  # noqa: F401
+from ._shared import EKF_T, EKF_X, FDT_DT, FDT_X, LOG_ALPHA, LOG_SAMPLES, MC_RUNS, MEAS_X, MERWE, RANK_ROWS, RANK_WINDOWS, ROW_X, SPARSE_EVERY, SPARSE_SAMPLES, STEP_DT, STEP_U, STEP_X, OMEGA_DT  # noqa: F401
 from ._08_model import MEASUREMENT, MEASURE_FUNCTION, STEP_MAP, check_measure_function, check_measurement, check_step_map  # noqa: F401
 from ._08_model import RECORDS as _08_MODEL_RECORDS
-from ._09_linearization import BEARING_ROW, F_DT, OBS_RANK, check_F_dt, check_bearing_row, check_obs_rank  # noqa: F401
+from ._09_linearization import BEARING_ROW, F_DT, OBS_RANK, OMEGA_Q, check_F_dt, check_bearing_row, check_obs_rank, check_omega_q  # noqa: F401
 from ._09_linearization import RECORDS as _09_LINEARIZATION_RECORDS
 from ._10_lkf import LKF_INNOVATION, MC_BOUNDS, check_lkf_innovation, check_mc_bounds  # noqa: F401
 from ._10_lkf import RECORDS as _10_LKF_RECORDS
@@ -58,7 +59,7 @@ from ._13_log import RECORDS as _13_LOG_RECORDS
 from ._18_live_demo import LOST_DIRECTIONS, LOST_SUBSETS, SUBSET_NIS_BOUNDS, check_lost_directions, check_subset_nis_bounds, lost_directions  # noqa: F401
 from ._18_live_demo import RECORDS as _18_LIVE_DEMO_RECORDS
 
-__all__ = ["EXERCISES", "check_step_map", "check_measurement", "check_bearing_row", "check_F_dt", "check_obs_rank", "check_mc_bounds", "check_lkf_innovation", "check_ekf_residual", "check_ekf_F", "check_merwe_weights", "check_circular_mean", "check_log_nis_bounds", "check_sparse_nis_bounds", "check_subset_nis_bounds", "check_lost_directions", "lost_directions", "LOST_SUBSETS", "check_measure_function"]
+__all__ = ["EXERCISES", "check_step_map", "check_measurement", "check_bearing_row", "check_F_dt", "check_obs_rank", "check_omega_q", "check_mc_bounds", "check_lkf_innovation", "check_ekf_residual", "check_ekf_F", "check_merwe_weights", "check_circular_mean", "check_log_nis_bounds", "check_sparse_nis_bounds", "check_subset_nis_bounds", "check_lost_directions", "lost_directions", "LOST_SUBSETS", "check_measure_function"]
 
 #: every exercise record of these notebooks, by id (in notebook order)
 EXERCISES = {e.id: e for e in sorted((*_08_MODEL_RECORDS, *_09_LINEARIZATION_RECORDS, *_10_LKF_RECORDS, *_11_EKF_RECORDS, *_12_UKF_RECORDS, *_13_LOG_RECORDS, *_18_LIVE_DEMO_RECORDS), key=lambda e: tuple(int(k) for k in e.id.split('.')))}

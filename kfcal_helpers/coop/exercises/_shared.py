@@ -30,6 +30,8 @@ ROW_X = (3.0, -4.0, 0.7, 15.0, 1.0, 2.0)
 #: 09.2: the state and the other sampling interval
 FDT_X = (0.0, 0.0, 2.0, 0.0, 0.0, -0.8)
 FDT_DT = 0.05
+#: 09.4: the sample period (s) of the per-step state noise Omega Qtrue Omega^T
+OMEGA_DT = 0.05
 #: 09.3: rows of H kept (the UAV's GPS) and window lengths, from t = 0 along the nominal
 RANK_ROWS = (3, 4)
 RANK_WINDOWS = (1, 10)
