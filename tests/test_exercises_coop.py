@@ -738,3 +738,11 @@ def test_08_2_catches_bearings_wrapped_to_0_2pi_and_the_source_states_its_x():
     x = exercises.MEAS_X
     assert "x = np.array([" + ", ".join(f"{v:.1f}" for v in x) + "])" in text
     assert "$x = [" + ",\\ ".join(f"{v:g}" if v != x[5] else f"{v:.1f}" for v in x) + "]^T$" in text
+
+
+def test_09_4_source_states_the_exercise_dt():
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "notebooks" / "source" / "09_coop_linearization.md").read_text(encoding="utf-8")
+    dt = f"{exercises.OMEGA_DT:g}"
+    assert f"for a sample period $\\Delta T = {dt}$ s" in text and f"Omega = {dt} * np.eye(6)" in text
