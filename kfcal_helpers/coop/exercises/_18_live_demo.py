@@ -34,6 +34,7 @@ SUBSET_NIS_BOUNDS = Exercise(
     hint="the time average of K independent χ²(m) values: K times it is χ²(mK)",
     hints={
         "dim5": "the NIS of an update that uses m measurements has m degrees of freedom, not always 5",
+        "dim6": "the NIS has the dimension of the measurements used (m of them), not the state's 6",
         "count_nan": "count only the samples with a measurement: the log's first row (t = 0) is NaN",
         "not_divided": "these bound the SUM of the NIS values; the time average is that sum divided by K",
         "one_sided": "a two-sided test at α = 0.05 puts α/2 = 0.025 in each tail",
@@ -56,6 +57,7 @@ def check_subset_nis_bounds(answer, *, n_meas: int = 3, n_samples: int = 1001, a
     z = stats.norm.ppf(1 - alpha / 2)
     pairs = [
         (chi2_bounds(N_MEAS, K, alpha), "dim5"),
+        (chi2_bounds(N_STATES, K, alpha), "dim6"),
         (chi2_bounds(m, K + 1, alpha), "count_nan"),
         (right * K, "not_divided"),
         (stats.chi2.ppf([alpha, 1 - alpha], m * K) / K, "one_sided"),
