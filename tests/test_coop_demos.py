@@ -168,6 +168,7 @@ def test_check_18_1_subset_nis_bounds():
     assert check_subset_nis_bounds(right).correct
     wrong = {
         "dim5": stats.chi2.ppf([0.025, 0.975], 5 * K) / K,
+        "dim6": stats.chi2.ppf([0.025, 0.975], 6 * K) / K,   # the state's dimension
         "count_nan": stats.chi2.ppf([0.025, 0.975], m * (K + 1)) / (K + 1),
         "not_divided": stats.chi2.ppf([0.025, 0.975], m * K),
         "one_sided": stats.chi2.ppf([0.05, 0.95], m * K) / K,

@@ -202,7 +202,8 @@ def cases():
                     ("z_space", np.arctanh(0.8) + np.array([-z, z]) / np.sqrt(297)),
                     ("one_sided", np.tanh(np.arctanh(0.8) + np.array([-1.6448536269514722, 1.6448536269514722])
                                           / np.sqrt(297))),
-                    ("z_rounded", np.tanh(np.arctanh(0.8) + np.array([-1.96, 1.96]) / np.sqrt(297)))], [])
+                    ("z_rounded", np.tanh(np.arctanh(0.8) + np.array([-1.96, 1.96]) / np.sqrt(297))),
+                    ("z_two", np.tanh(np.arctanh(0.8) + np.array([-2.0, 2.0]) / np.sqrt(297)))], [])
     # 06.3 --------------------------------------------------------------------------------
     lvl = 0.05 / 1057
     out["06.3"] = (ex.check_simultaneous_nees_band, two_sided(3000, 1000, lvl),
@@ -334,7 +335,8 @@ def test_malformed_answers_give_a_hint(exercise):
 @pytest.mark.parametrize("exercise", ["04.1", "04.3", "04.4"])
 def test_transposed_or_flat_matrix_gets_a_shape_hint(exercise):
     check, right, _, _ = CASES[exercise]
-    assert "expected shape (3, 3)" in check(np.ravel(right)).message
+    fb = check(np.ravel(right))
+    assert "has shape (9,): the exercise asks for a matrix" in fb.message and "(3, 3)" not in fb.message, str(fb)
 
 
 def test_transposed_gain_gets_the_shape_hint():
@@ -343,7 +345,7 @@ def test_transposed_gain_gets_the_shape_hint():
         fb = ex.check_first_gain(bad)
         assert not fb.correct and fb.message == HINTS["05.2"]["shape"]
     fb = ex.check_second_gain(np.transpose(CASES["05.3"][1]))
-    assert not fb.correct and "expected shape (3, 2)" in fb.message
+    assert not fb.correct and "is transposed (shape (2, 3))" in fb.message, str(fb)
 
 
 # --------------------------------------------------------------------------------------------
@@ -616,3 +618,39 @@ def test_batch_two_fixes_recognises_the_ill_conditioned_mistake_on_any_machine()
         assert not fb.correct and HINTS["16.1"]["no_v"] in fb.message, str(fb)
     fb = ex.check_batch_two_fixes(no_v * 1.01)  # farther off: no longer that mistake
     assert not fb.correct and HINTS["16.1"]["no_v"] not in fb.message, str(fb)
+
+
+# --------------------------------------------------------------------------------------------
+# issue 32: shape hints that never reveal the size, units and order slips, one home for 03.1's numbers
+# --------------------------------------------------------------------------------------------
+def test_the_03_1_shape_hint_does_not_give_away_the_count():
+    right = CalibrationParams(gps_rate=ex.GPS_FIX_RATE).fix_indices
+    for bad in (right[:-3], np.r_[right, right[-1] + 50, right[-1] + 100]):
+        fb = ex.check_gps_fix_indices(bad)
+        assert not fb.correct and str(right.size) not in fb.message, str(fb)
+        assert "not the shape the exercise asks for" in fb.message, str(fb)
+
+
+def test_03_1_numbers_have_one_home_that_the_source_notebook_agrees_with():
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "notebooks" / "source" / "03_gps_model.md").read_text(encoding="utf-8")
+    rate = f"{ex.GPS_FIX_RATE:g}"
+    assert f"**Exercise 03.1 — fixes at {rate} Hz.** With a 200 Hz IMU and a {rate} Hz GPS" in text
+    assert f"steps = 200 // {rate}\n" in text and f"$200/{rate} = " in text
+    assert f"{rate} Hz" in EXERCISES["03.1"].praise and f"({rate} Hz)" in EXERCISES["03.1"].hints["rate"]
+
+
+@pytest.mark.parametrize("factor", [10.0, 100.0, 1000.0, 0.1, 0.01, 0.001])
+def test_a_units_slip_is_named(factor):
+    right = np.array([4521.37, 103.412]) - np.array([4518.90, 103.47])
+    fb = ex.check_gps_dz(right * factor)
+    assert not fb.correct and f"{factor:g} times the right one: check the units" in fb.message, str(fb)
+
+
+def test_a_reversed_band_gets_the_order_hint():
+    right = CASES["02.3"][1] if "02.3" in CASES else None
+    if right is None:
+        pytest.skip("no band case")
+    fb = ex.check_imu_std_band(np.asarray(right)[::-1])
+    assert not fb.correct and "reverse order" in fb.message and "[lower, upper]" in fb.message, str(fb)

@@ -114,7 +114,8 @@ def test_imu_output_on_the_simulation_is_what_simulate_does():
     ("no_bias", lambda a, b, w: a + w),
     ("no_noise", lambda a, b, w: a + b[:, None] + 0 * w),
     ("broadcast", lambda a, b, w: a + b + w),              # raises: (5,) + (3,)
-    ("broadcast", lambda a, b, w: (a[:, None] + b + w.T)),  # the transpose, (n_imu, n)
+    ("transposed", lambda a, b, w: (a[:, None] + b + w.T)),  # the transpose, (n_imu, n): not the b[:, None] hint
+    ("broadcast", lambda a, b, w: (a[:, None] + b[::-1] + w.T)),  # (n_imu, n) and not the transpose of the sum
     ("shape", lambda a, b, w: a + b.mean()),
 ])
 def test_imu_output_names_each_mistake(key, func):
@@ -215,3 +216,31 @@ def test_records_are_listed():
     for name in ("check_dead_reckoning", "check_imu_output", "check_gps_measurement"):
         assert name in ex.__all__
     assert {"02.4", "02.5", "03.4"} <= set(EXERCISES)
+
+
+# --------------------------------------------------------------------------------------------
+# issue 32: a function that modifies its inputs is never accepted (01.3, 02.4, 02.5, 03.4, 05.1)
+# --------------------------------------------------------------------------------------------
+def _in_place_imu_output(a, b, w):
+    w += a + b[:, None]   # the notebook's own w would be corrupted
+    return w
+
+
+def test_an_in_place_imu_output_is_told_not_to_modify_w():
+    fb = ex.check_imu_output(_in_place_imu_output)
+    assert not fb.correct and fb.message.startswith("don't modify your inputs: your function changed w;"), str(fb)
+    w = np.zeros((3, 5))
+    ex.check_imu_output(lambda a, b, w_: a + b[:, None] + w_)
+    assert np.array_equal(w, np.zeros((3, 5)))
+
+
+@pytest.mark.parametrize("check, func", [
+    (ex.check_euler_truth, lambda a, p0, v0, dt: (a.fill(0.0), (a, a))[1]),
+    (ex.check_dead_reckoning, lambda a_c, p, v, dt: (a_c.fill(0.0), (a_c, a_c))[1]),
+    (ex.check_gps_measurement, lambda p, v, eta, r: (eta.fill(0.0), eta)[1]),
+    (ex.check_predict_only, lambda x, M, Phi, Q, n: (M.fill(0.0), (x, M))[1]),
+], ids=["01.3", "02.4", "03.4", "05.1"])
+def test_a_function_that_modifies_an_input_is_told_which(check, func):
+    fb = check(func)
+    name = list(__import__("inspect").signature(func).parameters)[{"01.3": 0, "02.4": 0, "03.4": 2, "05.1": 1}[fb.exercise]]
+    assert not fb.correct and f"your function changed {name};" in fb.message, str(fb)

@@ -250,6 +250,18 @@ def right_10_1():
     return np.array([avg_bounds(6, N, 0.05), avg_bounds(5, N, 0.05)])
 
 
+_Q_TRUE = np.diag([0.001, 0.001, 0.01, 0.001, 0.001, 0.01])   # the course's Qtrue, typed from the notebook
+
+
+def right_09_4():
+    Om = 0.05 * np.eye(6)   # Omega = dT I at the exercise's dT = 0.05 s
+    return Om @ _Q_TRUE @ Om.T
+
+
+def wrong_09_4():
+    return {"one_dt": 0.05 * _Q_TRUE, "no_omega": _Q_TRUE, "notebook_dt": 0.01 * _Q_TRUE, "divided": _Q_TRUE / 0.05**2}
+
+
 def wrong_10_1():
     N, z = coop.MC_RUNS, 1.959963984540054
     right = right_10_1()
@@ -263,6 +275,7 @@ def wrong_10_1():
         "normal": np.array([[n - z * math.sqrt(2 * n / N), n + z * math.sqrt(2 * n / N)] for n in (6, 5)]),
         "notebook_N": np.array([avg_bounds(6, 50, 0.05), avg_bounds(5, 50, 0.05)]),
         "one_run": np.array([[chi2_ppf(0.025, n), chi2_ppf(0.975, n)] for n in (6, 5)]),   # chi2(n), not averaged
+        "dim6": np.array([avg_bounds(6, N, 0.05), avg_bounds(6, N, 0.05)]),   # the NIS with the state's dimension
     }
 
 
@@ -418,6 +431,7 @@ CHECKS = {
     "09.1": (exercises.check_bearing_row, False),
     "09.2": (exercises.check_F_dt, False),
     "09.3": (exercises.check_obs_rank, False),
+    "09.4": (exercises.check_omega_q, False),
     "10.1": (exercises.check_mc_bounds, False),
     "10.2": (exercises.check_lkf_innovation, True),
     "11.1": (exercises.check_ekf_residual, True),
@@ -429,10 +443,12 @@ CHECKS = {
 }
 
 RIGHT = {"08.1": right_08_1, "08.2": right_08_2, "09.1": right_09_1, "09.2": right_09_2, "09.3": right_09_3,
+         "09.4": right_09_4,
          "10.1": right_10_1, "10.2": lambda: lkf_right, "11.1": lambda: residual_arctan2, "11.2": right_11_2,
          "12.1": right_12_1, "12.2": lambda: circ_right}
 
 WRONG = {"08.1": wrong_08_1, "08.2": wrong_08_2, "09.1": wrong_09_1, "09.2": wrong_09_2, "09.3": wrong_09_3,
+         "09.4": wrong_09_4,
          "10.1": wrong_10_1, "10.2": wrong_10_2, "11.1": wrong_11_1, "11.2": wrong_11_2, "12.1": wrong_12_1,
          "12.2": wrong_12_2}
 
@@ -485,14 +501,15 @@ def test_other_valid_forms_are_accepted():
     assert exercises.check_mc_bounds(right_10_1().ravel()).correct
     assert exercises.check_obs_rank([int(r) for r in right_09_3()]).correct
     assert exercises.check_circular_mean(lambda a, w: np.array([circ_right(a, w)])).correct
-    # the function may modify its inputs in place
+    # a function that modifies its inputs in place is told so, by the input's name (issue 32)
     def in_place(a, b):
         a -= b
         a[[0, 2]] = wrap(a[[0, 2]])
         return a
 
-    assert exercises.check_ekf_residual(in_place).correct
-    assert exercises.check_ekf_residual(in_place).correct  # the check's own inputs are unchanged
+    for _ in range(2):  # the check's own inputs are unchanged: the same verdict twice
+        fb = exercises.check_ekf_residual(in_place)
+        assert not fb.correct and "don't modify your inputs" in fb.message and " a;" in fb.message, str(fb)
 
 
 def _wrong_cases():
@@ -654,9 +671,10 @@ def test_small_physical_errors_get_method_hints_and_only_roundings_are_told_so()
     slips = [right + d for d in np.eye(6)[[2, 5]] * 0.035] + [right + d for d in np.eye(6)[[0, 3]] * 0.03]
     slip = right.copy()
     slip[1] = 2 * x[1] - right[1]  # the north displacement with the wrong sign
-    for answer in [*slips, slip]:
+    names = ["theta_g", "theta_a", "xi_g", "xi_a", "eta_g"]   # issue 32: the hint names the slipped component
+    for answer, name in zip([*slips, slip], names):
         fb = exercises.check_step_map(answer)
-        assert not fb.correct and fb.message == GENERIC_HINT, (answer, str(fb))
+        assert not fb.correct and fb.message.startswith("only the ") and f"{name} is off" in fb.message, (answer, str(fb))
     for decimals in (2, 3, 5):
         assert exercises.check_step_map(np.round(right, decimals)).message == ROUNDED_HINT
     no_sinc = wrong_08_1()["no_sinc"]
@@ -678,3 +696,53 @@ def test_the_right_value_as_complex_is_not_right(exercise):
             answer = np.asarray(right, dtype=float) + 1e-3j
         fb = check(answer)
         assert not fb.correct and "complex" in fb.message, str(fb)
+
+
+# --------------------------------------------------------------------------------------------
+# issue 32: 08.1's small slips named by component; degrees for radians
+# --------------------------------------------------------------------------------------------
+def _step_right():
+    from kfcal_helpers.coop.model import step
+
+    return step(np.array(exercises.STEP_X), np.array(exercises.STEP_U), exercises.STEP_DT, 0.5)
+
+
+@pytest.mark.parametrize("delta, words", [
+    ((0, 0, 0.035, 0, 0, 0), "only the UGV's heading theta_g is off"),
+    ((0, 0, 0, 0, 0, -0.035), "only the UAV's heading theta_a is off"),
+    ((0, 0, 0, 0.03, 0.03, 0), "only the UAV's east position xi_a and the UAV's north position eta_a are off"),
+    ((0.03, 0, 0, 0, 0, 0), "only the UGV's east position xi_g is off"),
+])
+def test_step_map_names_the_component_that_slipped(delta, words):
+    fb = exercises.check_step_map(_step_right() + np.array(delta))
+    assert not fb.correct and fb.message.startswith(words), str(fb)
+
+
+def test_step_map_headings_in_degrees_get_the_degree_hint():
+    right = _step_right()
+    fb = exercises.check_step_map(np.where([0, 0, 1, 0, 0, 1], np.degrees(right), right))
+    assert not fb.correct and "in degrees" in fb.message, str(fb)
+
+
+
+def test_08_2_catches_bearings_wrapped_to_0_2pi_and_the_source_states_its_x():
+    from pathlib import Path
+
+    from kfcal_helpers.coop.model import measure
+
+    right = measure(np.array(exercises.MEAS_X))
+    assert right[0] < 0 or right[2] < 0   # a negative bearing: [0, 2pi) differs from (-pi, pi]
+    fb = exercises.check_measurement(np.where([1, 0, 1, 0, 0], np.mod(right, 2 * np.pi), right))
+    assert not fb.correct and fb.message == HINTS["08.2"]["wrap"], str(fb)
+    text = (Path(__file__).parents[1] / "notebooks" / "source" / "08_coop_nonlinear_model.md").read_text(encoding="utf-8")
+    x = exercises.MEAS_X
+    assert "x = np.array([" + ", ".join(f"{v:.1f}" for v in x) + "])" in text
+    assert "$x = [" + ",\\ ".join(f"{v:g}" if v != x[5] else f"{v:.1f}" for v in x) + "]^T$" in text
+
+
+def test_09_4_source_states_the_exercise_dt():
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "notebooks" / "source" / "09_coop_linearization.md").read_text(encoding="utf-8")
+    dt = f"{exercises.OMEGA_DT:g}"
+    assert f"for a sample period $\\Delta T = {dt}$ s" in text and f"Omega = {dt} * np.eye(6)" in text

@@ -118,5 +118,6 @@ def test_the_check_does_not_let_the_student_change_its_inputs():
         x[...] = 0.0
         return y
 
-    assert check_measure_function(in_place).correct
+    fb = check_measure_function(in_place)
+    assert not fb.correct and "don't modify your inputs: your function changed x;" in fb.message, str(fb)
     assert check_measure_function(h_loops).correct

@@ -157,3 +157,58 @@ def test_assert_correct_prints_on_success_and_raises_the_hint_otherwise(capsys):
         assert str(info.value) == str(fb) and fb.message in str(info.value)
     assert "check the sign" in str(EX.judge(-2.0, 2.0, [(-2.0, "sign")]))
     assert capsys.readouterr().err == ""
+
+
+# --------------------------------------------------------------------------------------------
+# slips every judged answer is checked for, and shape hints that never reveal the size (issue 32)
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("factor", [10.0, 100.0, 1000.0, 0.1, 0.01, 0.001])
+def test_a_units_slip_is_named_by_its_factor(factor):
+    right = np.array([0.7, -2.5, 3.25])
+    fb = EX.judge(right * factor, right)
+    assert not fb.correct and fb.message.startswith(f"your answer is {factor:g} times the right one"), str(fb)
+
+
+def test_reversed_transposed_and_degrees_are_named():
+    band = np.array([0.61, 1.52])
+    assert "reverse order" in EX.judge(band[::-1], band).message
+    M = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.5]])
+    assert "transposed" in EX.judge(M.T, M).message
+    angles = Exercise("99.6", praise="right", angles=(1,))
+    assert "in degrees" in angles.judge([2.0, np.degrees(0.4)], [2.0, 0.4]).message
+    assert "in degrees" not in EX.judge([2.0, np.degrees(0.4)], [2.0, 0.4]).message  # not an angle: no such hint
+    # a listed mistake wins over a slip
+    assert EX.judge(-band, band, [(-band, "sign")]).message == "check the sign"
+
+
+def test_shape_hints_diagnose_transposition_and_never_reveal_the_size():
+    from kfcal_helpers.exercises import shape_hint
+
+    assert "transposed" in shape_hint((5, 3), (3, 5))
+    for got in ((120,), (122,), (3, 40)):
+        text = shape_hint(got, (121,))
+        assert "121" not in text and "not the shape the exercise asks for" in text, text
+    assert "a matrix" in shape_hint((9,), (3, 3)) and "(3, 3)" not in shape_hint((9,), (3, 3))
+
+
+def test_component_hint_names_one_or_two_entries():
+    ex = Exercise("99.7", praise="right", hint="generic", components=("x", "y", "heading"))
+    assert ex.judge([1.0, 2.0, 3.035], [1.0, 2.0, 3.0]).message.startswith("only heading is off")
+    assert ex.judge([1.03, 2.03, 3.0], [1.0, 2.0, 3.0]).message.startswith("only x and y are off")
+    assert ex.judge([1.03, 2.03, 3.03], [1.0, 2.0, 3.0]).message == "generic"   # all off: the method hint
+
+
+def test_call_student_gives_copies_and_names_a_changed_input():
+    data = np.arange(3.0)
+
+    def appends(xs, values):
+        xs.append(1.0)
+        return values.sum()
+
+    outs, fb = call_student("99.8", appends, [([], data)])
+    assert outs is None and fb.message.startswith("don't modify your inputs: your function changed xs;")
+    outs, fb = call_student("99.8", lambda v: v.sum(), [(data,)])
+    assert fb is None and outs == [3.0]
+    seen = []
+    call_student("99.8", lambda v: seen.append(v) or 1.0, [(data,)])
+    assert seen[0] is not data and np.array_equal(seen[0], data)   # a deep copy, never the check's own array

@@ -29,8 +29,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from ._limits import (TIME_LIMIT, TimeLimitExceeded, can_interrupt, changed_input, copies, run_limited, time_limit,
+                      time_limit_hint)
+from ._slips import component_hint, slip_hint
+
 __all__ = ["Feedback", "Exercise", "unanswered", "as_array", "answer_problem", "matches", "is_rounding", "judge",
-           "call_student", "first_line", "chi2_average_bounds", "distinct_mistakes", "GENERIC_HINT", "PLACEHOLDER",
+           "call_student", "answer_shape", "shape_hint", "too_large", "TIME_LIMIT", "MAX_OUTPUT_ENTRIES", "first_line", "chi2_average_bounds", "distinct_mistakes", "GENERIC_HINT", "PLACEHOLDER",
            "PLACEHOLDER_FUNC", "FORMAT_RULE", "ROUNDED_HINT", "NON_FINITE_HINT"]
 
 #: the answer-format rule of every exercise, stated once (exercise texts and feedback repeat it)
@@ -42,6 +46,10 @@ ROUNDED_HINT = f"close, but these digits look rounded: {FORMAT_RULE}; the checks
 PLACEHOLDER_FUNC = "write the body of your function (replace ... with your code), then pass the function to the check"
 #: the hint for an answer that holds a NaN or an infinity
 NON_FINITE_HINT = "your answer contains NaN or inf: look for a division by zero or an overflow"
+#: a student function's output with more entries than this (and than 10 times its test input's) is judged
+#: wrong from its shape alone, before any conversion (a broadcast view of 10**8 entries costs no memory
+#: until it is converted)
+MAX_OUTPUT_ENTRIES = 10**6
 
 
 @dataclass(frozen=True)
@@ -86,12 +94,17 @@ class Exercise:
     praise : the line shown with a correct answer (what the answer teaches)
     hint : the hint when the answer is wrong in no recognised way
     hints : ``{mistake key: hint}`` for the common mistakes the check recognises (never the answer)
+    components : names of the answer's entries (flattened), for the hint that names the wrong ones
+        ("the heading of the UAV"); empty: no per-component hint
+    angles : which entries are angles in radians (indices, or True for all), for the degree slip
     """
 
     id: str
     praise: str
     hint: str = GENERIC_HINT
     hints: dict = field(default_factory=dict)
+    components: tuple = ()
+    angles: object = None
 
     def feedback(self, correct: bool, message: str | None = None, answered: bool = True) -> Feedback:
         """A Feedback of this exercise: ``message`` defaults to the praise (correct) or the hint."""
@@ -112,7 +125,7 @@ class Exercise:
         """:func:`judge` with this exercise's praise and hint; ``wrong`` holds ``(value, mistake key)`` pairs."""
         pairs = [(value, self.hints[key]) for value, key in wrong]
         return judge(self.id, answer, expected, pairs, rtol=rtol, atol=atol, praise=self.praise, hint=self.hint,
-                     placeholder=placeholder)
+                     placeholder=placeholder, components=self.components, angles=self.angles)
 
 
 def first_line(exc: BaseException, limit: int = 100) -> str:
@@ -122,12 +135,18 @@ def first_line(exc: BaseException, limit: int = 100) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-def _screen_function_output(out, depth: int = 0) -> str | None:
+def _screen_function_output(out, depth: int = 0, cap: int = MAX_OUTPUT_ENTRIES) -> str | None:
     """Why a student function's output ``out`` cannot be judged as real finite numbers (one line), or
-    None.  Looks into tuples and lists (two levels); leaves non-numeric outputs to the check."""
+    None.  Looks into tuples and lists (two levels); leaves non-numeric outputs to the check.  An output
+    of more than ``cap`` entries is judged from its shape, before any conversion."""
+    size = _cheap_size(out)
+    if size is not None and size > cap:
+        shape = answer_shape(out)
+        return (f"your function returned {'an array of shape ' + str(shape) if shape is not None else 'a result'} "
+                f"with {size} entries, far more than the test input calls for: check the shapes of your result")
     if isinstance(out, (tuple, list)) and depth < 2:
         for item in out:
-            why = _screen_function_output(item, depth + 1)
+            why = _screen_function_output(item, depth + 1, cap)
             if why is not None:
                 return why
         return None
@@ -145,15 +164,98 @@ def _screen_function_output(out, depth: int = 0) -> str | None:
     return None  # not numbers at all: the check says what it expected
 
 
+def answer_shape(answer) -> tuple | None:
+    """The shape of an array answer (an ndarray, a numpy scalar, anything with a tuple of ints as
+    ``shape``), read without converting it, or None.  Never raises (but for Ctrl-C)."""
+    if isinstance(answer, (np.ndarray, np.generic)):
+        return tuple(answer.shape)
+    if isinstance(answer, (int, float, complex, str, bytes, list, tuple, dict)) or answer is None:
+        return None
+    try:
+        shape = getattr(answer, "shape", None)
+        if isinstance(shape, tuple) and all(isinstance(n, (int, np.integer)) and n >= 0 for n in shape):
+            return tuple(int(n) for n in shape)
+    except KeyboardInterrupt:
+        raise
+    except BaseException:  # a student's object whose shape property fails
+        pass
+    return None
+
+
+def _cheap_size(answer, depth: int = 0) -> int | None:
+    """The number of entries of ``answer`` as far as it can be read without converting anything: an
+    array's size, and the sum over a list's or tuple's items (two levels; a long list counts its length,
+    its entries already exist in memory).  None when nothing tells."""
+    shape = answer_shape(answer)
+    if shape is not None:
+        return math.prod(shape)
+    if isinstance(answer, (list, tuple)) and depth < 2:
+        if len(answer) > 10_000:
+            return len(answer)
+        sizes = [_cheap_size(item, depth + 1) for item in answer]
+        return sum(1 if n is None else n for n in sizes)
+    return None
+
+
+def shape_hint(got, expected, what: str = "your answer") -> str:
+    """One line on an answer of shape ``got`` where shape ``expected`` is asked, never revealing the
+    expected number of entries: a transposed matrix is called transposed, an answer of the right size in
+    another arrangement is told the kind of array asked (number, vector, matrix), any other is told only
+    that its shape is not the one asked."""
+    got, expected = tuple(got), tuple(expected)
+    if len(got) == 2 and len(expected) == 2 and got == expected[::-1] and got != expected:
+        return (f"{what} is transposed (shape {got}): rows and columns are swapped; check which quantity runs "
+                "along the rows and which along the columns")
+    if math.prod(got) == math.prod(expected):
+        kind = {0: "a single number", 1: "a vector (a 1-D array)", 2: "a matrix (a 2-D array)"}.get(
+            len(expected), f"a {len(expected)}-D array")
+        return f"{what} has shape {got}: the exercise asks for {kind} with these entries arranged differently"
+    return f"{what} has shape {got}, not the shape the exercise asks for: check how many entries you computed"
+
+
+def too_large(answer, *expected) -> str | None:
+    """The shape hint (:func:`shape_hint`) when ``answer`` holds more entries than every one of the
+    ``expected`` arrays (the right value, the mistakes' values), read before any conversion; else None.
+    Call it first: converting a broadcast view of 10**8 entries would allocate gigabytes."""
+    size = _cheap_size(answer)
+    if size is None or not expected or (answer_shape(answer) is None and size <= MAX_OUTPUT_ENTRIES):
+        return None  # a list's entries exist already: converting it is cheap, and judge() says more about it
+    shapes = [np.shape(e) for e in expected]
+    if size <= max(math.prod(sh) for sh in shapes):
+        return None
+    got = answer_shape(answer)
+    return shape_hint(got if got is not None else (size,), shapes[0])
+
+
+def _exception_hint(exc: BaseException) -> str:
+    """The one-line verdict on an exception raised by the student's code (any BaseException but Ctrl-C)."""
+    if isinstance(exc, TimeLimitExceeded):
+        return time_limit_hint(time_limit(), can_interrupt())
+    if isinstance(exc, SystemExit):
+        return ("your function called exit() or sys.exit() (SystemExit) on the test input: a function returns its "
+                "result, it never ends the program")
+    try:
+        text = first_line(exc)
+    except KeyboardInterrupt:
+        raise
+    except BaseException:  # an exception whose message itself fails (with anything, SystemExit included)
+        text = ""
+    return f"your function raised {type(exc).__name__} on the test input" + (f": {text}" if text else "")
+
+
 def call_student(exercise: str, func, cases, what: str = "your function", convert=None):
     """Call the student's ``func`` once per argument tuple in ``cases``, safely.
 
     Returns ``(outputs, None)`` with one output per case, or ``(None, Feedback)`` when the function
-    is still the placeholder, is not callable, raises (the exception's name and first line become the
-    hint), returns the placeholder (None or ...), or returns numbers that cannot be judged (complex,
-    too large for a float, NaN or inf; :func:`answer_problem`).  ``convert`` (optional) maps each
-    argument before the call (e.g. ``np.asarray``).  Warnings inside the student's code are silenced:
-    a bad result is judged by the check, never shown as a warning.
+    is still the placeholder, is not callable, raises anything but ``KeyboardInterrupt`` (``SystemExit``
+    included: the exception's name and first line become the hint), runs past the time limit
+    (:data:`TIME_LIMIT`; :func:`~kfcal_helpers.exercises.run_limited`), modifies one of its inputs
+    (the hint names it), returns the placeholder (None or ...), or returns numbers that cannot be judged
+    (far more entries than the test input calls for, read before any conversion; complex, too large for
+    a float, NaN or inf; :func:`answer_problem`).  Each call gets deep copies of the case's arguments, so
+    the check's own data never changes.  ``convert`` (optional) maps each argument before the call (e.g.
+    ``np.asarray``).  Warnings inside the student's code are silenced: a bad result is judged by the
+    check, never shown as a warning.
     """
     if unanswered(func):
         return None, Feedback(exercise, False, PLACEHOLDER_FUNC, answered=False)
@@ -164,14 +266,22 @@ def call_student(exercise: str, func, cases, what: str = "your function", conver
     for args in cases:
         if convert is not None:
             args = tuple(convert(a) for a in args)
-        try:
-            with warnings.catch_warnings(), np.errstate(all="ignore"):
-                warnings.simplefilter("ignore")
-                out = func(*args)
-                why = _screen_function_output(out)
-        except Exception as exc:  # a half-written function: name the exception, never crash
-            return None, Feedback(exercise, False, f"your function raised {type(exc).__name__} on the test input: "
-                                                   f"{first_line(exc)}")
+        kept, given = copies(args), copies(args)
+        cap = max(MAX_OUTPUT_ENTRIES, 10 * sum(_cheap_size(a) or 1 for a in args))
+        report = (f"{exercise}: your function has run for more than {time_limit():g} s on a small test input "
+                  "and this platform cannot stop it: interrupt the kernel and look for a loop that never ends")
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            out, exc = run_limited(func, given, report=report)
+            why = None
+            if exc is None:  # the screening converts the output: a student's class may run (and fail) there too
+                why, exc = run_limited(lambda o: _screen_function_output(o, cap=cap), (out,))
+        if exc is not None:  # a half-written function: name the exception, never crash
+            return None, Feedback(exercise, False, _exception_hint(exc))
+        name = changed_input(func, kept, given)
+        if name is not None:
+            return None, Feedback(exercise, False, f"don't modify your inputs: your function changed {name}; work on "
+                                                   f"a copy ({name} = {name}.copy()) or build a new array")
         if unanswered(out):
             return None, Feedback(exercise, False, f"your function returns {out!r}: {PLACEHOLDER_FUNC}",
                                   answered=False)
@@ -199,16 +309,22 @@ def unanswered(answer) -> bool:
 
 
 def _to_float(answer):
-    """``(float ndarray, None)`` or ``(None, reason)``; never raises, never warns."""
+    """``(float ndarray, None)`` or ``(None, reason)``; never raises, never warns, and never converts an
+    answer of more than :data:`MAX_OUTPUT_ENTRIES` entries (its size is read first)."""
     if isinstance(answer, (str, bytes)):
         return None, f"expected numbers, got {type(answer).__name__}"
     if callable(answer) and not isinstance(answer, np.ndarray):
         return None, "expected numbers, got a function: pass the value it computes"
+    size = _cheap_size(answer)
+    if size is not None and size > MAX_OUTPUT_ENTRIES:  # read before converting: a broadcast view costs nothing yet
+        return None, f"your answer has {size} entries, far more than the exercise asks for: check its shape"
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
         try:
             raw = np.asarray(answer)
-        except Exception:  # ragged nesting and other unconvertible objects
+        except KeyboardInterrupt:
+            raise
+        except BaseException:  # ragged nesting and other unconvertible objects (a student's class may raise anything)
             return None, f"expected numbers, got {type(answer).__name__}"
         if np.iscomplexobj(raw) or (raw.dtype == object and any(isinstance(v, complex) for v in raw.flat)):
             return None, ("your answer is complex: the answer is real; keep the real part only where the imaginary "
@@ -221,9 +337,9 @@ def _to_float(answer):
             arr = raw.astype(float)
         except OverflowError:
             return None, "your answer holds a number too large for a float (overflow): " + FORMAT_RULE
-        except (TypeError, ValueError):
-            return None, f"expected numbers, got {type(answer).__name__}"
-        except Exception:
+        except KeyboardInterrupt:
+            raise
+        except BaseException:
             return None, f"expected numbers, got {type(answer).__name__}"
     return arr, None
 
@@ -320,7 +436,8 @@ def _distance(a: np.ndarray, v: np.ndarray) -> float:
 
 
 def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol: float = 1e-12,
-          praise: str = "well done", hint: str = GENERIC_HINT, placeholder: str = "replace ... with your answer") -> Feedback:
+          praise: str = "well done", hint: str = GENERIC_HINT, placeholder: str = "replace ... with your answer",
+          components=(), angles=None, slips: bool = True) -> Feedback:
     """The verdict on ``answer`` against ``expected`` and the common mistakes.
 
     wrong : sequence of ``(value, hint)`` pairs: the value a common mistake gives and the
@@ -330,11 +447,19 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
     cannot be judged as real finite numbers (:func:`answer_problem`) or has another shape gets its own
     hint.  An answer that is a rounding of the expected value (:func:`is_rounding`) gets
     :data:`ROUNDED_HINT`, also when it is a rounding of a mistake's value too (at that precision
-    nobody can tell them apart); a rounding of a mistake's value only gets that mistake's hint.
+    nobody can tell them apart); a rounding of a mistake's value only gets that mistake's hint.  An
+    answer that is none of these but the right one with a slip (:mod:`~kfcal_helpers.exercises._slips`:
+    scaled by a power of ten, in degrees where ``angles`` are radians, reversed, transposed) gets that
+    slip's hint (``slips=False``: not tried); one right in all but one or two entries gets a hint naming
+    them by ``components``.  An answer larger than every expected value is judged from its shape alone,
+    before any conversion (:func:`too_large`).
     """
     if unanswered(answer):
         return Feedback(exercise, False, placeholder, answered=False)
     e = np.asarray(expected, dtype=float)
+    big = too_large(answer, e, *(value for value, _ in wrong))
+    if big is not None:
+        return Feedback(exercise, False, big)
     a, why = _to_float(answer)
     if why is not None:
         if why.startswith("expected numbers"):
@@ -349,13 +474,16 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
         if matches(a, value, rtol, atol) and not (rounded_right and not matches(a, value, 1e-12, 0.0)):
             return Feedback(exercise, False, why)
     if a.size != e.size:
-        return Feedback(exercise, False, f"expected shape {e.shape}, got {a.shape}")
+        return Feedback(exercise, False, shape_hint(a.shape, e.shape))
     if rounded_right:
         return Feedback(exercise, False, ROUNDED_HINT)
     near = [(_distance(a.ravel(), np.asarray(v, dtype=float).ravel()), why) for v, why in wrong if is_rounding(a, v)]
     if near:
         return Feedback(exercise, False, min(near, key=lambda t: t[0])[1])
-    return Feedback(exercise, False, hint)
+    slip = slip_hint(a, e, rtol=rtol, atol=atol, angles=angles) if slips else None
+    if slip is None and components:
+        slip = component_hint(a, e, components, rtol=rtol, atol=atol)
+    return Feedback(exercise, False, slip if slip is not None else hint)
 
 
 def chi2_average_bounds(dim: int, n: int, alpha: float, *, dof: int | None = None, divide_by: float | None = None,

@@ -1,0 +1,121 @@
+"""Exercise checks of notebook 06 (Monte Carlo validation): 06.1-06.3."""
+
+from __future__ import annotations
+
+
+
+import numpy as np
+from scipy import stats
+
+from ...consistency import chi2_bounds
+from ...exercises._core import (Exercise, Feedback, chi2_average_bounds)
+from ...validation import (require_finite, require_int, require_probability)
+from ._shared import numeric
+
+
+_MC_NIS_BOUNDS = Exercise(
+    "06.1",
+    praise="the NIS band for 50 runs",
+    hint="the NIS summed over N runs is χ² with (residual dimension × N) degrees of freedom: take the two-sided "
+         "quantiles, then average",
+    hints={
+        "dim3": "the NIS is a quadratic form in the 2-dimensional residual: χ² with 2N degrees of freedom",
+        "dim1": "the residual has 2 components (position and velocity): χ² with 2N degrees of freedom",
+        "one_sided": "a two-sided test at α = 0.05 takes the α/2 and 1 - α/2 quantiles",
+        "sum": "these bound the sum over runs: the exercise asks for the run average (divide by N)",
+        "n_minus_1": "the run average of N independent NIS values has 2N degrees of freedom: no N - 1 here",
+    },
+)
+
+
+def check_mc_nis_bounds(answer, *, n_runs: int = 50, alpha: float = 0.05) -> Feedback:
+    """Exercise 06.1: the two-sided ``1 - alpha`` bounds ``[lower, upper]`` (dimensionless),
+    shape (2,), of the run-averaged NIS (2-dimensional residual) over ``n_runs`` runs."""
+    N = require_int("n_runs", n_runs, minimum=2)
+    alpha = require_probability("alpha", alpha)
+    right = chi2_bounds(2, N, alpha)
+    wrong = [("dim3", chi2_average_bounds(3, N, alpha)), ("dim1", chi2_average_bounds(1, N, alpha)),
+             ("one_sided", chi2_average_bounds(2, N, alpha, one_sided=True)), ("sum", chi2_average_bounds(2, N, alpha) * N),
+             ("n_minus_1", chi2_average_bounds(2, N - 1, alpha))]
+    return numeric(_MC_NIS_BOUNDS, answer, right, wrong)
+
+
+_FISHER_BAND = Exercise(
+    "06.2",
+    praise="Fisher's z makes the band of a correlation symmetric and of known width",
+    hint="build the band where it is symmetric (Fisher's z of ρ, with its standard error), then transform back",
+    hints={
+        "sqrt_n": "the standard error of Fisher's z is 1/√(N - 3), not 1/√N",
+        "linear": "the band is symmetric in z = atanh ρ, not in ρ: transform, add ± z_q/√(N - 3), transform back",
+        "z_space": "transform the band back to a correlation with tanh",
+        "one_sided": "a two-sided 95 % band uses the 97.5 % normal quantile (1.96)",
+        "z_rounded": "right method, but with the normal quantile rounded: compute it (scipy.stats.norm.ppf), and "
+                     "pass the value you computed, with no rounding",
+        "z_two": "right method, but z = 2 is not the quantile: the two-sided 95 % band uses the 97.5 % normal quantile "
+                 "(scipy.stats.norm.ppf)",
+    },
+)
+
+
+def check_fisher_band(answer, *, rho: float = 0.8, n_runs: int = 300, alpha: float = 0.05) -> Feedback:
+    """Exercise 06.2: the two-sided ``1 - alpha`` band ``[lower, upper]`` of an ensemble
+    correlation over ``n_runs`` runs when the filter's correlation is ``rho`` (Fisher's z)."""
+    rho = require_finite("rho", rho)
+    if not -1 < rho < 1:
+        raise ValueError(f"rho must be in (-1, 1), got {rho!r}")
+    N = require_int("n_runs", n_runs, minimum=5)
+    alpha = require_probability("alpha", alpha)
+    z = stats.norm.ppf(1 - alpha / 2)
+    pm = np.array([-1.0, 1.0])
+    right = np.tanh(np.arctanh(rho) + pm * z / np.sqrt(N - 3))
+    wrong = [("sqrt_n", np.tanh(np.arctanh(rho) + pm * z / np.sqrt(N))), ("linear", rho + pm * z / np.sqrt(N - 3)),
+             ("z_space", np.arctanh(rho) + pm * z / np.sqrt(N - 3)),
+             ("one_sided", np.tanh(np.arctanh(rho) + pm * stats.norm.ppf(1 - alpha) / np.sqrt(N - 3)))]
+    for digits in (2, 3):  # 1.96 or 1.960 typed for the quantile
+        wrong.append(("z_rounded", np.tanh(np.arctanh(rho) + pm * round(z, digits) / np.sqrt(N - 3))))
+    wrong.append(("z_two", np.tanh(np.arctanh(rho) + pm * 2.0 / np.sqrt(N - 3))))   # the "two sigma" rule
+    return numeric(_FISHER_BAND, answer, right, wrong)
+
+
+_SIMULTANEOUS_NEES_BAND = Exercise(
+    "06.3",
+    praise="the simultaneous band is wider: every one of the 151 fixes must pass",
+    hint="the per-entry significance is (α/7)/151 (α/7 per check, shared by its 151 fixes); then the usual "
+         "χ²_{3N}/N band",
+    hints={
+        "pointwise": "that is the pointwise band: the simultaneous one gives each check α/7, then splits that over "
+                     "the check's entries",
+        "fixes_only": "α is first split over the seven checks (α/7 each), then over the 151 fixes of the NEES check",
+        "checks_only": "α/7 is the NEES check's share; it is then split over its 151 fixes",
+        "one_sided": "each entry's two-sided band puts half of its share of α in each tail",
+        "dim2": "the NEES is a quadratic form in the 3-dimensional error: χ² with 3N degrees of freedom",
+        "sum": "these bound the SUM of the N NEES values; the check uses their run average: divide by N",
+        "dof3": "one NEES has 3 degrees of freedom, but the sum of N independent ones has 3N: use χ²_{3N}, then "
+                "divide by N",
+    },
+)
+
+
+def check_simultaneous_nees_band(answer, *, n_runs: int = 1000, n_fixes: int = 151, n_checks: int = 7,
+                                 alpha: float = 0.05) -> Feedback:
+    """Exercise 06.3: the simultaneous (Bonferroni) band ``[lower, upper]`` of the run-averaged
+    NEES at each of ``n_fixes`` fixes: ``alpha / n_checks`` per check, split equally over the
+    check's ``n_fixes`` entries (as :meth:`MonteCarloResult.checks` does)."""
+    N = require_int("n_runs", n_runs, minimum=2)
+    n_fixes = require_int("n_fixes", n_fixes, minimum=2)
+    n_checks = require_int("n_checks", n_checks, minimum=2)
+    alpha = require_probability("alpha", alpha)
+    level = alpha / (n_fixes * n_checks)
+    right = chi2_bounds(3, N, level)
+    wrong = [("pointwise", chi2_average_bounds(3, N, alpha)), ("fixes_only", chi2_average_bounds(3, N, alpha / n_fixes)),
+             ("checks_only", chi2_average_bounds(3, N, alpha / n_checks)),
+             ("one_sided", chi2_average_bounds(3, N, level, one_sided=True)),
+             ("dim2", chi2_average_bounds(2, N, level)),
+             ("sum", chi2_average_bounds(3, N, level, divide_by=1)),
+             ("dof3", chi2_average_bounds(3, N, level, dof=3, divide_by=1)),
+             ("dof3", chi2_average_bounds(3, N, level, dof=3))]
+    return numeric(_SIMULTANEOUS_NEES_BAND, answer, right, wrong)
+
+
+#: the exercise records of this lesson, in notebook order
+RECORDS = (_MC_NIS_BOUNDS, _FISHER_BAND, _SIMULTANEOUS_NEES_BAND)
