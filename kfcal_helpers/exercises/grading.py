@@ -210,14 +210,19 @@ class Replay:
                 decode(call["out"])
         self._calls = calls
         self._next = 0
+        #: why the replay failed, if it did (the check's harness turns what the function raises into a verdict,
+        #: so the mismatch is kept here as well as raised)
+        self.mismatch = None
 
     def __call__(self, *args, **kwargs):
         if self._next >= len(self._calls):
-            raise ReplayMismatch("the check called the function more often than recorded")
+            self.mismatch = "the check called the function more often than recorded"
+            raise ReplayMismatch(self.mismatch)
         call = self._calls[self._next]
         self._next += 1
         if encode(args) != call["args"] or encode(kwargs) != call["kwargs"]:
-            raise ReplayMismatch("the check's inputs are not the recorded ones")
+            self.mismatch = "the check's inputs are not the recorded ones"
+            raise ReplayMismatch(self.mismatch)
         if "raised" in call:
             name, message = call["raised"]
             raise type(_safe_name(name), (Exception,), {})(message)
@@ -284,14 +289,17 @@ def recheck(exercise: str, module: str, check: str, record) -> tuple[bool, str]:
         answer = Replay(data.get("calls")) if data.get("t") == "function" else decode(data)
     except RecordError:
         return False, altered
+    mismatch = (False, f"✘ {exercise} not graded: the recorded results of your function are not those of the "
+                       "check's test inputs; run the notebook from the top and hand it in again")
     try:
         with contextlib.redirect_stdout(io.StringIO()):
             feedback = func(answer)
     except ReplayMismatch:
-        return False, (f"✘ {exercise} not graded: the recorded results of your function are not those of the "
-                       "check's test inputs; run the notebook from the top and hand it in again")
+        return mismatch
     except Exception as exc:
         return False, f"✘ {exercise} not graded: the check failed on the recorded answer ({type(exc).__name__})"
+    if isinstance(answer, Replay) and answer.mismatch is not None:   # the check's harness caught the mismatch
+        return mismatch
     if not isinstance(feedback, Feedback):
         return False, f"✘ {exercise} not graded: the check returned no verdict"
     return bool(feedback.correct), str(feedback)
