@@ -18,6 +18,7 @@ import os
 import shutil
 import subprocess
 import sys
+import sysconfig
 import tomllib
 from importlib import metadata
 from pathlib import Path
@@ -134,7 +135,10 @@ def test_every_installed_distribution_is_pinned():
     except metadata.PackageNotFoundError:
         path = ROOT / "environment.txt"
     wanted = {n: v for n, (v, marker) in pins(path).items() if marker is None or marker.evaluate()}
-    installed = {canonicalize_name(d.metadata["Name"]): d.version for d in metadata.distributions()}
+    # what pip installed into the environment's site-packages: not what a package vendors and puts on sys.path
+    # when imported (setuptools adds its _vendor folder, with jaraco.*, wheel, tomli, ..., to sys.path)
+    site = sorted({sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]})
+    installed = {canonicalize_name(d.metadata["Name"]): d.version for d in metadata.distributions(path=site)}
     installed.pop("kfcal-helpers", None)  # the project itself (-e .)
     installed.pop("pip", None)  # the installer
     if "setuptools" not in wanted:
