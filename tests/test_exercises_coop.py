@@ -242,7 +242,8 @@ def right_09_3():
 def wrong_09_3():
     r1, r10 = right_09_3()
     return {"no_motion": np.array([r1, r1]), "full": np.array([r1, 6]), "all_rows": np.array([5, 6]),
-            "rows_count": np.array([r1, 2 * 10]), "one_step": np.array([r10, r10]), "whole": np.array([r1 + 0.5, r10])}
+            "rows_count": np.array([r1, 2 * 10]), "one_step": np.array([r10, r10]), "whole": np.array([r1 + 0.5, r10]),
+            "reversed": np.array([r10, r1])}
 
 
 def right_10_1():

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from kfcal_helpers.coop import measure
+from kfcal_helpers.coop import measure, wrap_angle
 from kfcal_helpers.coop.exercises import EXERCISES, check_measure_function
 from kfcal_helpers.exercises._core import GENERIC_HINT, Feedback
 
@@ -94,7 +94,8 @@ def test_a_function_for_one_state_only_is_told_to_index_the_last_axis():
 
 
 def test_every_hint_has_a_wrong_answer_test():
-    tested = {"atan2_order", "no_wrap", "swapped_heading", "same_direction", "degrees", "ugv_gps", "one_state"}
+    tested = {"atan2_order", "no_wrap", "swapped_heading", "same_direction", "degrees", "ugv_gps", "one_state",
+              "wrap_2pi", "stack_axis"}   # the last two: test_08_3_stack_slips_get_their_own_hint
     assert tested == set(HINTS)
 
 
@@ -121,3 +122,51 @@ def test_the_check_does_not_let_the_student_change_its_inputs():
     fb = check_measure_function(in_place)
     assert not fb.correct and "don't modify your inputs: your function changed x;" in fb.message, str(fb)
     assert check_measure_function(h_loops).correct
+
+
+def _h_vectorised(x):
+    x = np.asarray(x, dtype=float)
+    dxi, deta = x[..., 3] - x[..., 0], x[..., 4] - x[..., 1]
+    return np.stack([wrap_angle(np.arctan2(deta, dxi) - x[..., 2]), np.hypot(dxi, deta),
+                     wrap_angle(np.arctan2(-deta, -dxi) - x[..., 5]), x[..., 3], x[..., 4]], axis=-1)
+
+
+def _changes_its_stack(x):
+    if np.ndim(x) > 1:
+        x[..., 2] += 1e-12        # changes a stack only: the hint is about the input, not about indexing
+    return _h_vectorised(x)
+
+
+def _rows_not_last_axis(x):
+    out = _h_vectorised(x)
+    return out.T if out.ndim > 1 else out
+
+
+def _wrapped_to_0_2pi(x):
+    out = _h_vectorised(x).copy()
+    out[..., [0, 2]] = np.mod(out[..., [0, 2]], 2 * np.pi)
+    return out
+
+
+@pytest.mark.parametrize("fn, hint", [
+    (_changes_its_stack, "don't modify your inputs: your function changed x"),
+    (_rows_not_last_axis, "for a stack your function returns (5, K)"),
+    (_wrapped_to_0_2pi, "wrapped to [0, 2 pi)"),
+    (lambda x: _h_vectorised(x)[..., [0, 2, 1, 3, 4]], "in its order: [bearing UGV->UAV"),
+])
+def test_08_3_stack_slips_get_their_own_hint(fn, hint):
+    """A cold reading's cases: a function that changes a stack, measurements on the first axis, bearings in
+    [0, 2 pi), the entries in the order of the exercise's old sentence: each told what it is, not 'index the
+    last axis'."""
+    assert check_measure_function(_h_vectorised).correct
+    fb = check_measure_function(fn)
+    assert not fb.correct and hint in fb.message and "index the last axis" not in fb.message, fb.message
+
+
+def test_09_3_reversed_ranks_name_the_windows():
+    from kfcal_helpers.coop.exercises import check_obs_rank
+
+    right = [int(r) for r in np.round(np.asarray([2, 3]))]
+    assert check_obs_rank(right).correct
+    fb = check_obs_rank(right[::-1])
+    assert not fb.correct and "window of m = 1 step" in fb.message and "band" not in fb.message

@@ -184,7 +184,9 @@ def _measure_fn_variant(x, mistake):
     elif mistake == "same_direction":
         back = direction
     b1, b2 = direction - th_g, back - th_a
-    if mistake != "no_wrap":
+    if mistake == "wrap_2pi":
+        b1, b2 = np.mod(b1, 2 * np.pi), np.mod(b2, 2 * np.pi)
+    elif mistake != "no_wrap":
         b1, b2 = wrap_angle(b1), wrap_angle(b2)
     if mistake == "degrees":
         b1, b2 = np.degrees(b1), np.degrees(b2)
@@ -196,10 +198,14 @@ def _measure_fn_variant(x, mistake):
 MEASURE_FUNCTION = Exercise(
     "08.3",
     praise="h(x) for one state and for a stack of states: bearings wrapped, each from its own vehicle's heading",
-    hint="compare with the measurement formula: two bearings (each minus its own vehicle's heading, wrapped), the range, the UAV's east and north",
+    hint="compare with the measurement formula, in its order: [bearing UGV->UAV (minus theta_g, wrapped), range, "
+         "bearing UAV->UGV (minus theta_a, wrapped), the UAV's east, the UAV's north]",
     hints={
         "atan2_order": "np.arctan2 takes the north difference first: np.arctan2(d_eta, d_xi)",
         "no_wrap": "the bearings leave (-pi, pi]: wrap them after subtracting the heading",
+        "wrap_2pi": "the bearings are wrapped to [0, 2 pi): wrap them to (-pi, pi] instead",
+        "stack_axis": "for a stack your function returns (5, K): put the measurements on the last axis "
+                      "(np.stack([...], axis=-1)) so that a stack (K, 6) gives (K, 5)",
         "swapped_heading": "each bearing is measured from its own vehicle's heading: the UGV's bearing minus theta_g (x[..., 2]), the UAV's minus theta_a (x[..., 5])",
         "same_direction": "the UAV looks back at the UGV: its line of sight is the reverse direction, np.arctan2(-d_eta, -d_xi)",
         "degrees": "the bearings are in radians, not degrees",
@@ -223,13 +229,16 @@ def check_measure_function(fn) -> Feedback:
     more, fb = call_student(E.id, fn, cases[1:], "measure_fn(x)", convert=convert)
     if fb is not None:   # right size for one state, but a stack fails (x[3] of four rows, say)
         single = as_array(outs[0])
-        return E.mistake("one_state") if fb.answered and single is not None and single.size == N_MEAS else fb
+        raised = fb.message.startswith("your function raised")   # not a changed input or the time limit
+        return E.mistake("one_state") if raised and single is not None and single.size == N_MEAS else fb
     outs = outs + more
     arrays = [as_array(o) for o in outs]
     if any(a is None for a in arrays):
         bad = next(o for o, a in zip(outs, arrays) if a is None)
         return E.feedback(False, f"your function must return numbers, shape (..., 5), it returned {type(bad).__name__}")
     shapes = [(N_MEAS,), (len(cases[1][0]), N_MEAS)]
+    if arrays[0].size == N_MEAS and arrays[1].shape == shapes[1][::-1]:
+        return E.mistake("stack_axis")
     if arrays[0].size == N_MEAS and arrays[1].shape != shapes[1]:
         return E.mistake("one_state")
     if any(a.size != int(np.prod(s)) for a, s in zip(arrays, shapes)):
@@ -244,7 +253,7 @@ def check_measure_function(fn) -> Feedback:
 
     expected = each(measure)
     wrong = [(each(lambda x, m=m: _measure_fn_variant(x, m)), m) for m in
-             ("atan2_order", "no_wrap", "swapped_heading", "same_direction", "degrees", "ugv_gps")]
+             ("atan2_order", "no_wrap", "wrap_2pi", "swapped_heading", "same_direction", "degrees", "ugv_gps")]
     return E.judge(answer, expected, distinct_mistakes(wrong, expected, FN_RTOL), rtol=FN_RTOL, atol=FN_ATOL)
 
 

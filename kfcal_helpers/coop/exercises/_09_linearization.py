@@ -1,4 +1,4 @@
-"""Exercise checks of notebook 09 (linearization): 09.1-09.3."""
+"""Exercise checks of notebook 09 (linearization): 09.1-09.4."""
 
 from __future__ import annotations
 
@@ -125,6 +125,7 @@ OBS_RANK = Exercise(
         "rows_count": "a rank cannot exceed the number of columns of O, the 6 states",
         "one_step": "at one instant O has only the two GPS rows",
         "whole": "a rank is a whole number: count the independent rows of O (np.linalg.matrix_rank)",
+        "reversed": "the first entry is the window of m = 1 step, the second the longer one",
     },
 )
 
@@ -145,7 +146,7 @@ def check_obs_rank(answer, *, windows=RANK_WINDOWS, start: int = 0) -> Feedback:
     first = expected[0]
     pairs = [(np.full(len(windows), first), "no_motion"), (np.r_[first, np.full(len(windows) - 1, 6.0)], "full"),
              (full, "all_rows"), (np.r_[first, [len(rows) * m for m in windows[1:]]], "rows_count"),
-             (np.r_[expected[-1], expected[1:]], "one_step")]
+             (np.r_[expected[-1], expected[1:]], "one_step"), (expected[::-1], "reversed")]
     wrong = [(v, key) for v, key in pairs if not np.array_equal(v, expected)]
     flat = finite_of_size(answer, len(windows))
     if flat is not None and not np.allclose(flat, np.round(flat)):
