@@ -26,8 +26,6 @@ What the reader accepts (anything else is a ValueError naming the path, file or 
 from __future__ import annotations
 
 import io
-import os
-import stat
 import struct
 import warnings
 import zlib
@@ -36,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import named, read_regular
 from ..validation import require_array, require_covariance, require_instance, require_int, require_text
 from .model import MAX_MEASUREMENT, MAX_STEPS, MAX_VARIANCE, N_MEAS, N_STATES, CoopParams, too_many_steps
 
@@ -181,59 +180,17 @@ def _build(raw: dict, source: str) -> CoopLog:
                    _matrix("Rtrue", raw["Rtrue"], (N_MEAS, N_MEAS)), source=source)
 
 
-_KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
-          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"), (stat.S_ISDIR, "a directory"))
-
-
-def _kind(mode: int) -> str:
-    return next((text for test, text in _KINDS if test(mode)), "not a regular file")
-
-
-def _named(f: Path) -> str:
-    """``f``, and the file it links to if it is a link (for messages)."""
-    try:
-        if f.is_symlink():
-            return f"{f} (a link to {os.path.realpath(f)})"
-    except OSError:
-        pass
-    return str(f)
-
-
 def _cannot_read(argname: str, f: Path, exc: OSError) -> ValueError:
     return ValueError(f"{argname}: cannot read {f}: {exc.strerror or exc}")
 
 
-def _nonblocking(path, flags):
-    """``open``'s opener: never wait for a writer (a FIFO swapped in after the check)."""
-    return os.open(path, flags | getattr(os, "O_NONBLOCK", 0))
-
-
 def _read_bytes(f: Path, limit: int, argname: str, name: str) -> bytes:
     """The bytes of the regular file ``f`` (links resolved), at most ``limit`` of them: ValueError naming
-    ``argname`` for a FIFO, device, socket or unreadable file, naming ``name`` for a file that is too large."""
-    try:
-        info = os.stat(f)  # follows links
-    except OSError as exc:
-        raise _cannot_read(argname, f, exc) from None
-    if not stat.S_ISREG(info.st_mode):
-        raise ValueError(f"{argname}: {_named(f)} is {_kind(info.st_mode)}; a log is read from regular files only")
-    too_large = (f"{name}: {_named(f)} is larger than the {limit / 1e6:.1f} MB a log of at most {MAX_STEPS} "
-                 f"steps needs (a longer log would not fit in memory)")
-    if info.st_size > limit:
-        raise ValueError(too_large)
-    try:
-        with open(f, "rb", opener=_nonblocking) as fh:
-            mode = os.fstat(fh.fileno()).st_mode
-            if not stat.S_ISREG(mode):
-                raise ValueError(f"{argname}: {_named(f)} is {_kind(mode)}; a log is read from regular files only")
-            data = fh.read(min(limit, info.st_size) + 1)  # read(n) reserves n bytes: ask for what is there
-            if len(data) > info.st_size:  # it grew (or a file of unknown size, such as /proc's)
-                data += fh.read(limit + 1 - len(data))
-    except OSError as exc:
-        raise _cannot_read(argname, f, exc) from None
-    if len(data) > limit:  # it grew after the check
-        raise ValueError(too_large)
-    return data
+    ``argname`` for a FIFO, device, socket or unreadable file, naming ``name`` for a file that is too large
+    (:func:`kfcal_helpers.files.read_regular`)."""
+    return read_regular(f, limit, argname=argname, regular_only="a log is read from regular files only",
+                        too_large=f"{name}: {named(f)} is larger than the {limit / 1e6:.1f} MB a log of at most "
+                                  f"{MAX_STEPS} steps needs (a longer log would not fit in memory)")
 
 
 def _read_csv(name: str, f: Path, argname: str) -> np.ndarray:
