@@ -1,6 +1,7 @@
 """Notebook 13 is true in every mode it can meet: without the course log (KFCAL_COURSE_LOG unset: a seeded
 generated log, the committed mode), with the course log (when KFCAL_COURSE_LOG names it; skipped otherwise)
-and with other valid logs (another Q; only 2 samples), where it says in one line that the course-log numbers
+and with other valid logs (another Q; 2 or 101 samples; every 20th measurement, where the NIS moving
+average's 50 measurements span 100 s, not 5 s), where it says in one line that the course-log numbers
 are not that log's and goes on.  Each run executes the whole notebook in a fresh kernel (nbclient): every
 assert of the mode runs, and a failing one fails the test with its cell.
 
@@ -82,21 +83,24 @@ def test_with_the_course_log(monkeypatch, nbval_runs):
     lambda: simulate(replace(CoopParams(), Qtrue=4.0 * CoopParams().Qtrue), seed=7).log(),
     lambda: simulate(CoopParams(duration=0.1), seed=3).log(),
     lambda: simulate(CoopParams(duration=10.0), seed=3).log(),
-], ids=["another Q", "2 samples", "101 samples"])
+    lambda: simulate(seed=5).log().every(20),
+], ids=["another Q", "2 samples", "101 samples", "every 20th measurement"])
 def test_with_another_valid_log(make, tmp_path, monkeypatch):
     log = make()
     assert not is_course_log(log)
     nb = _execute(monkeypatch, write_log_csv(log, tmp_path / "log"))
     _check(nb, "other")
+    joined = "\n".join(_text(c) for c in nb.cells if c.cell_type == "code")
+    n_updates = int(np.isfinite(log.y).all(axis=1).sum())
     if log.n_samples == 2:  # the views that need many measurements say so in one line
-        joined = "\n".join(_text(c) for c in nb.cells if c.cell_type == "code")
         assert "only 1 measurement(s): too few for a 50-step moving average" in joined
         assert "too few for autocorrelations" in joined
     if log.n_samples == 101:  # a moving average, but no window after t = 80 s
-        joined = "\n".join(_text(c) for c in nb.cells if c.cell_type == "code")
         assert "after t = 80 s: no complete window (the last window's centre is at t = 7.6 s)" in joined
-    if log.n_samples == 1001:  # Qtrue x 4: the EKF and the UKF part by more than the course log's 0.15 m
-        joined = "\n".join(_text(c) for c in nb.cells if c.cell_type == "code")
+        assert "a window: 50 measurements, 0.1 s apart (median), covering 5 s" in joined
+    if log.n_samples == 1001 and n_updates == 50:  # every 20th: the one window spans 100 s, not 5 s
+        assert "a window: 50 measurements, 2 s apart (median), covering 100 s" in joined
+    if log.n_samples == 1001 and n_updates == 1000:  # Qtrue x 4: the EKF and the UKF part by more than the course log's 0.15 m
         assert "on this log: the EKF and the UKF differ by up to" in joined
 
 

@@ -8,7 +8,8 @@ Modules:
 * :mod:`.model` -- :class:`CoopParams`, dynamics, the exact closed-form one-step map,
   nominal trajectory, measurement function, angle wrapping, Jacobians A, B, C,
   F, G, H, the observability matrix over a window;
-* :mod:`.simulation` -- truth model (state noise Omega w_k, w_k ~ N(0, Qtrue), Omega = dt I by default):
+* :mod:`.simulation` -- truth model (state noise Omega w_k, w_k ~ N(0, Qtrue) a rate noise held over the step,
+  Omega = dt I by default):
   :func:`simulate` returns a :class:`Simulation` (one run or many; ``.log()`` is a course-format log);
 * :mod:`.filters` -- LKF, EKF, UKF on filterpy: ``run_xkf(y, setup, truth=None)`` with a
   :class:`FilterSetup` (params, Q, the :class:`MeasurementModel`, settings), :func:`run_filter` the

@@ -9,8 +9,8 @@ Examples::
 A truth-model Monte Carlo (``--runs N``) keeps per-run arrays of 112 kB per run of 1001 steps; one
 that would need more than 500 MB (about 2,300 runs of 100 s) is refused with its estimate.
 
-The filter's process noise is ``Q = S * Qtrue`` (covariance of the DT noise ``w_k``, which enters
-the state through ``Omega = dt * I``).  By default S is the filter's scale tuned by the truth-model
+The filter's process noise is ``Q = S * Qtrue`` (covariance of the DT noise ``w_k``, a rate noise held
+over each step, which enters the state through ``Omega = dt * I``: ``dt^2 Q`` per step).  By default S is the filter's scale tuned by the truth-model
 tests (``TUNED_Q_SCALE``, ``q_scale_source: "truth-model test"``), for a course log too: the NIS
 reported on the log is then a test of that Q.  ``--q-scale auto`` (opt-in) instead fits S to the
 log: the maximum-likelihood scale of ``Q_SCALE_LADDER``, reported with the range of ladder scales

@@ -5,8 +5,9 @@ Course format (variables / files):
 * ``ydata`` -- 5 x K measurements, one column per time (rad, m, rad, m, m); the first
   column (t = 0) is NaN, and any all-NaN column means "no measurement at that step";
 * ``tvec`` -- 1 x K times, s, uniformly spaced;
-* ``Qtrue`` -- 6 x 6 covariance of the DT process noise w_k (the state receives ``Omega Qtrue Omega^T = dt^2 Qtrue``
-  per step); ``Rtrue`` -- 5 x 5 measurement noise.
+* ``Qtrue`` -- 6 x 6 covariance of the DT process noise w_k, a noise on the rates ((m/s)^2, (rad/s)^2) held
+  constant over each step; the state receives ``Omega Qtrue Omega^T = dt^2 Qtrue`` per step (``Omega = dt I``,
+  the Euler step of the held noise); ``Rtrue`` -- 5 x 5 measurement noise.
 
 As CSV: ``ydata.csv``, ``tvec.csv``, ``Qtrue.csv``, ``Rtrue.csv`` in one folder.
 Inside the package a log is a :class:`CoopLog` with one *row* per time.
@@ -69,7 +70,7 @@ class CoopLog:
     ----------
     t : array (K,), s
     y : array (K, 5) -- measurements, rows of NaN where there is none (row 0 in the course log)
-    Qtrue : array (6, 6); Rtrue : array (5, 5)
+    Qtrue : array (6, 6) -- covariance of the rate noise w_k held over a step; Rtrue : array (5, 5)
     truth : array (K, 6) or None -- true states, known only for simulated logs
     source : str -- where the log came from (for messages)
     """

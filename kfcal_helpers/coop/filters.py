@@ -86,7 +86,7 @@ __all__ = [
 
 FILTERS = ("lkf", "ekf", "ukf")
 
-#: filter Q = scale * Qtrue (covariance of w_k, entering through Omega = dt I), chosen by the
+#: filter Q = scale * Qtrue (covariance of the rate noise w_k, entering through Omega = dt I), chosen by the
 #: truth-model tests, NEES and NIS together (notebooks 10-12); never tuned on a log.  No scale makes
 #: the LKF's NEES consistent (notebook 10), so it keeps Qtrue.
 TUNED_Q_SCALE = {"lkf": 1.0, "ekf": 1.0, "ukf": 1.0}
@@ -117,8 +117,8 @@ UKF_POINTS = SigmaPoints()
 
 @checked(params=optional(partial(require_instance, cls=CoopParams)))
 def tuned_Q(filter: str, params: CoopParams | None = None) -> np.ndarray:
-    """The tuned filter process noise of ``filter``: the covariance (6x6) of ``w_k``, which
-    enters the state as ``Omega Q Omega^T`` per step."""
+    """The tuned filter process noise of ``filter``: the covariance (6x6) of ``w_k`` (the rate noise held
+    over a step), which enters the state as ``Omega Q Omega^T`` (``dt^2 Q``) per step."""
     filter = require_choice("filter", filter, FILTERS)
     p = params if params is not None else CoopParams()
     return TUNED_Q_SCALE[filter] * p.Qtrue

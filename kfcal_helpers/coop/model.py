@@ -78,8 +78,9 @@ MEAS_LABELS = (r"bearing UGV$\to$UAV [rad]", "range [m]", r"bearing UAV$\to$UGV 
 
 
 #: how the DT process noise w_k ~ N(0, Q) enters the state, x_{k+1} = f_d(x_k, u_k) + Omega w_k:
-#: "dt" -- Omega = dt * I (the course's model: per-step state noise dt^2 Q); "identity" -- Omega = I
-#: (per-step state noise Q, a known mistake kept as a named variant)
+#: "dt" -- Omega = dt * I (the course's model: w_k is a noise on the rates held constant over the step, so
+#: the Euler step x_k + dt (f(x_k, u_k) + w_k) gives Omega = dt I and per-step state noise dt^2 Q);
+#: "identity" -- Omega = I (per-step state noise Q itself, a known mistake kept as a named variant)
 NOISE_MODELS = ("dt", "identity")
 
 #: largest magnitude accepted in measurements (m, rad): beyond it the filters' squares overflow
@@ -134,10 +135,14 @@ class CoopParams:
     ``x0 = [10, 0, pi/2, -60, 0, -pi/2]``, ``u0 = [2, -pi/18, 12, pi/25]``,
     noise covariances ``Qtrue`` (6x6, of the DT process noise ``w_k``) and ``Rtrue`` (5x5).
 
-    ``noise_model`` says how ``w_k`` enters the state, ``x_{k+1} = f_d(x_k, u_k) + Omega w_k``:
-    ``"dt"`` (default, the course's model) has ``Omega = dt * I``, so the state receives noise of
-    covariance ``Omega Qtrue Omega^T = dt^2 Qtrue`` per step; ``"identity"`` has ``Omega = I``
-    (``Qtrue`` per step, a named variant for the mistake of notebook 14).  The truth simulation and
+    ``Qtrue`` is the covariance of ``w_k``, a noise on the rates ((m/s)^2 in the positions, (rad/s)^2
+    in the headings), ``xdot = f(x, u) + Gamma w`` with ``Gamma = I``, held constant over each step; it
+    is not the covariance of the state's noise per step.  ``noise_model`` says how ``w_k`` enters the
+    state, ``x_{k+1} = f_d(x_k, u_k) + Omega w_k``: ``"dt"`` (default, the course's model) has
+    ``Omega = dt * Gamma`` -- the Euler step ``x_k + dt (f(x_k, u_k) + Gamma w_k)`` of the held noise --
+    so the state receives noise of covariance ``Omega Qtrue Omega^T = dt^2 Qtrue`` per step;
+    ``"identity"`` has ``Omega = I`` (a state noise of covariance ``Qtrue`` itself per step, a named
+    variant for the mistake of notebook 14).  The truth simulation and
     every filter use the same ``Omega`` (:meth:`process_noise`).
     ``P0`` (6x6) is the covariance of the initial state about ``x0``: the truth-model
     tests draw the true initial state from N(x0, P0) and every filter starts at
@@ -151,7 +156,8 @@ class CoopParams:
     duration: float = 100.0  #: length of a run, s
     x0: np.ndarray = _vector(10.0, 0.0, np.pi / 2, -60.0, 0.0, -np.pi / 2)  #: nominal initial state
     u0: np.ndarray = _vector(2.0, -np.pi / 18, 12.0, np.pi / 25)  #: nominal (constant) control
-    Qtrue: np.ndarray = _diag(0.001, 0.001, 0.01, 0.001, 0.001, 0.01)  #: covariance of w_k (state: Omega Qtrue Omega^T)
+    #: covariance of w_k, the rate noise held over a step, (m/s)^2 and (rad/s)^2 (state per step: Omega Qtrue Omega^T)
+    Qtrue: np.ndarray = _diag(0.001, 0.001, 0.01, 0.001, 0.001, 0.01)
     Rtrue: np.ndarray = _diag(0.0225, 64.0, 0.04, 36.0, 36.0)  #: measurement noise
     P0: np.ndarray = _diag(1.0, 1.0, 0.01, 1.0, 1.0, 0.01)  #: initial covariance (m^2, rad^2)
     noise_model: str = "dt"  #: how w_k enters the state: "dt" (Omega = dt I) or "identity" (Omega = I)

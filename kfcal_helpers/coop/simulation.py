@@ -1,9 +1,10 @@
 """Truth-model simulation: noisy states and measurements, and seeded observation logs.
 
 Noise model (discrete time): ``x_{k+1} = phi(x_k, u0) + Omega w_k`` with ``phi`` the exact
-closed-form one-step map (:func:`~kfcal_helpers.coop.model.step`), ``w_k ~ N(0, Qtrue)`` and
-``Omega = params.Omega`` (``dt * I`` by default, so the state noise per step has covariance
-``dt^2 Qtrue``; ``I`` for ``noise_model="identity"``); ``y_k = h(x_k) + v_k`` with
+closed-form one-step map (:func:`~kfcal_helpers.coop.model.step`), ``w_k ~ N(0, Qtrue)`` a noise on
+the rates held constant over the step and ``Omega = params.Omega`` (``dt * I`` by default, the Euler step
+of that held noise, so the state noise per step has covariance ``dt^2 Qtrue``; ``I`` for
+``noise_model="identity"``); ``y_k = h(x_k) + v_k`` with
 ``v_k ~ N(0, Rtrue)``, bearings wrapped.  The filters use the same ``Omega``
 (``P- = F P F^T + Omega Q Omega^T``).  The true
 initial state is drawn from ``N(x0, P0)``.  Everything is vectorised over runs.
