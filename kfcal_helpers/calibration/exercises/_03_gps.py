@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from ...exercises._core import (Exercise, Feedback, as_array, chi2_average_bounds)
+from ...exercises._core import (BAND_NAMES, Exercise, Feedback, as_array, chi2_average_bounds)
 from ...validation import (require_finite, require_int, require_positive,
                           require_probability)
 from ..params import CalibrationParams
@@ -56,6 +56,7 @@ _GPS_DZ = Exercise(
         "noise": "that is the GPS noise η = z - truth; the filter never sees the truth",
         "truth": "that is H δx (truth minus IMU); the filter's measurement uses the GPS instead of the truth",
     },
+    components=("δz_p", "δz_v"),
 )
 
 
@@ -84,6 +85,7 @@ _GPS_RMS_BAND = Exercise(
         "one_sided": "a two-sided 95 % band puts α/2 = 2.5 % in each tail, not 5 %",
         "normal": "close, but that is the normal approximation: use the exact chi-square quantiles",
     },
+    components=BAND_NAMES,
 )
 
 
@@ -113,6 +115,9 @@ def _gps_test():
                     [[-0.6, 0.04], [0.2, -0.01], [1.3, 0.02], [-0.7, 0.06]]])
     return p, v, eta, 4
 
+
+#: 03.4: the entries of z along its last axis, for the hint that names the wrong one
+Z_ENTRIES = ("the position z[..., 0]", "the velocity z[..., 1]")
 
 _GPS_MEASUREMENT = Exercise(
     "03.4",
@@ -160,7 +165,8 @@ def check_gps_measurement(func) -> Feedback:
     for key, value in variants:
         if close(got, value):
             return ex.mistake(key)
-    return ex.feedback(False)
+    slip = ex.output_slip([got], [truth + eta], ("z",), components=[Z_ENTRIES])
+    return ex.feedback(False) if slip is None else slip
 
 
 

@@ -62,6 +62,7 @@ _OUTAGE_SIGMA = Exercise(
         "no_q": "the IMU noise keeps adding Q = W ΓΓᵀ at every step of the outage",
         "variance": "these are variances: the exercise asks for standard deviations",
     },
+    components=("σ_p", "σ_v", "σ_b"),
 )
 
 

@@ -21,7 +21,14 @@ from ..model import (
 )
 from ...exercises._core import (Exercise, Feedback, chi2_average_bounds)
 from ...validation import require_int, require_probability
-from ._shared import BOUNDS_RTOL, FN_ATOL, FN_RTOL, MC_RUNS, call_checked, pi_for_minus_pi
+from ._shared import BOUNDS_RTOL, FN_ATOL, FN_RESULT, FN_RTOL, MC_RUNS, MEAS_NAMES, call_checked, pi_for_minus_pi
+
+
+def mod_2pi(d):
+    """``d`` (..., 5) with its bearings wrapped to [0, 2 pi) (a common wrong answer)."""
+    d = np.array(d, dtype=float)
+    d[..., list(MEAS_ANGLES)] = np.mod(d[..., list(MEAS_ANGLES)], 2 * np.pi)
+    return d
 
 
 def normal_bounds(dim, n, alpha, z=None):
@@ -46,6 +53,7 @@ MC_BOUNDS = Exercise(
                    "and its quantiles are divided by N",
         "dim6": "the NIS has the dimension of the measurement, not of the state",
     },
+    components=("the NEES lower bound", "the NEES upper bound", "the NIS lower bound", "the NIS upper bound"),
 )
 
 
@@ -106,7 +114,10 @@ LKF_INNOVATION = Exercise(
         "wrap_all": "wrap only the bearings (components 0 and 2): range and GPS are not angles",
         "wrap_early": "wrap the whole innovation after subtracting H dx (it can cross +-pi again)",
         "no_H": "subtract the predicted measurement perturbation H dx",
+        "wrap_2pi": "the bearings are wrapped to [0, 2 pi): wrap them to (-pi, pi] instead",
     },
+    components=MEAS_NAMES,
+    angles=MEAS_ANGLES,
 )
 
 
@@ -136,8 +147,9 @@ def check_lkf_innovation(fn) -> Feedback:
         (each(lambda y, yn, H, dx: wrap_angle((y - yn) - H @ dx)), "wrap_all"),
         (each(wrap_early), "wrap_early"),
         (each(lambda y, yn, H, dx: wrap_measurement(y - yn)), "no_H"),
+        (each(lambda y, yn, H, dx: mod_2pi((y - yn) - H @ dx)), "wrap_2pi"),
     ]
-    return LKF_INNOVATION.judge(answer, expected, wrong, rtol=FN_RTOL, atol=FN_ATOL)
+    return LKF_INNOVATION.judge(answer, expected, wrong, rtol=FN_RTOL, atol=FN_ATOL, what=FN_RESULT)
 
 
 #: the exercise records of this lesson, in notebook order
