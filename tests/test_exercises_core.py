@@ -212,3 +212,27 @@ def test_call_student_gives_copies_and_names_a_changed_input():
     seen = []
     call_student("99.8", lambda v: seen.append(v) or 1.0, [(data,)])
     assert seen[0] is not data and np.array_equal(seen[0], data)   # a deep copy, never the check's own array
+
+
+def test_a_functions_outputs_get_the_slips_of_a_judged_answer():
+    from kfcal_helpers.exercises import output_slip_hint
+
+    p, v = np.array([1.0, 2.5, 4.0]), np.array([2.0, 3.0, -1.0])
+    assert output_slip_hint([p * 100, v], [p, v], ("p", "v")).startswith("your function's p is 100 times the right one")
+    assert output_slip_hint([p, v / 1000], [p, v], ("p", "v")).startswith("your function's v is 0.001 times")
+    assert "reverse order" in output_slip_hint([p[::-1], v], [p, v], ("p", "v"))
+    assert output_slip_hint([p * 100, v + 1], [p, v], ("p", "v")) is None     # one output slipped, one wrong: no slip
+    assert output_slip_hint([p, v], [p, v], ("p", "v")) is None
+    stack = np.array([[0.5, 10.0], [-2.0, 20.0]])                               # two test cases of [angle, range]
+    deg = stack * [180 / np.pi, 1.0]
+    assert "in degrees" in output_slip_hint([deg], [stack], ("result",), angles=(0,))
+    assert output_slip_hint([stack + [0.0, 1.0]], [stack], ("result",), components=[("the angle", "the range")]) \
+        .startswith("only the range is off")
+
+
+def test_components_of_a_stack_are_named_by_column_and_a_swap_is_called_swapped():
+    ex = Exercise("99.9", praise="right", hint="generic", components=("a", "b", "c"))
+    right = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
+    assert ex.judge(right + [0.0, 0.0, 0.5], right).message.startswith("only c is off")   # off in both rows: named once
+    assert ex.judge(right[:, [0, 2, 1]], right).message.startswith("b and c are swapped")
+    assert ex.judge(right + 0.5, right).message == "generic"

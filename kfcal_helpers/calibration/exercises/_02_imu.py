@@ -109,7 +109,8 @@ def check_imu_std_band(answer, *, sigma: float = 0.02, n: int = 50, alpha: float
              ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, one_sided=True))),
              ("no_divide", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, divide_by=1))),
              ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * (n - 1)))),
-             ("normal", sigma * (1 + np.array([-1.96, 1.96]) / np.sqrt(2 * (n - 1))))]  # with the usual 1.96
+             ("normal", sigma * (1 + np.array([-1.96, 1.96]) / np.sqrt(2 * (n - 1)))),  # with the usual 1.96
+             ("normal", sigma * (1 + np.array([-2.0, 2.0]) / np.sqrt(2 * (n - 1))))]  # or the two-sigma rule
     return numeric(_IMU_STD_BAND, answer, right, wrong)
 
 

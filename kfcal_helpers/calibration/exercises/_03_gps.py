@@ -101,7 +101,8 @@ def check_gps_rms_band(answer, *, sigma: float = 0.04, n: int = 100, alpha: floa
              ("variance", sigma**2 * chi2_average_bounds(1, n, alpha)),
              ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n, alpha, one_sided=True))),
              ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * n))),
-             ("normal", sigma * (1 + np.array([-1.96, 1.96]) / np.sqrt(2 * n)))]  # with the usual 1.96
+             ("normal", sigma * (1 + np.array([-1.96, 1.96]) / np.sqrt(2 * n))),  # with the usual 1.96
+             ("normal", sigma * (1 + np.array([-2.0, 2.0]) / np.sqrt(2 * n)))]  # or the two-sigma rule
     return numeric(_GPS_RMS_BAND, answer, right, wrong)
 
 

@@ -22,7 +22,7 @@ _OUTAGE_MASK = Exercise(
         "closed": "the window is half-open, t_s <= t < t_e: the fix at t_e is the first one back",
         "open_start": "the window is half-open, t_s <= t < t_e: the fix at t_s is already missing",
         "inverted": "True marks a MISSING fix (as outage_mask returns), not a fix that is used",
-        "imu_rate": "one entry per GPS fix (151), not per IMU sample",
+        "imu_rate": "one entry per GPS fix, not per IMU sample",
     },
 )
 

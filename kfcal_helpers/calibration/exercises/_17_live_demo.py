@@ -123,7 +123,7 @@ def check_demo_ratio_band(answer, *, n_runs: int = 200, alpha: float = 0.05) -> 
         (right**2, "variance"),
         (np.sqrt(stats.chi2.ppf([alpha, 1 - alpha], N - 1) / (N - 1)), "one_sided"),
     ]
-    for zq in (z, 1.96):  # the approximations, with the exact quantile or the usual 1.96
+    for zq in (z, 1.96, 2.0):  # the approximations, with the exact quantile, the usual 1.96 or the two-sigma rule
         pairs += [(1 + pm * zq / np.sqrt(2 * (N - 1)), "normal"), (1 + pm * zq / np.sqrt(N), "mean_band")]
     return ex.judge(answer, right, distinct_mistakes(pairs, right, _RTOL_BAND), rtol=_RTOL_BAND, atol=0.0)
 

@@ -21,7 +21,7 @@ from ..model import (
 from ...exercises._core import (Exercise, Feedback, as_array, call_student, distinct_mistakes, unanswered)
 from ...validation import require_positive, require_shape
 from ._shared import (FN_ATOL, FN_RESULT, FN_RTOL, MEAS_NAMES, MEAS_X, NUM_ATOL, NUM_RTOL, STATE_NAMES, STEP_DT, STEP_U,
-                      STEP_X, degree_slip, pi_for_minus_pi, wrap_answer)
+                      STEP_X, pi_for_minus_pi, slip_before_wrapping, wrap_answer)
 
 
 def _arc_variant(x, u, dt, L, *, length="sinc", heading="mid", yaw_L=True, trig="ok"):
@@ -77,7 +77,7 @@ def check_step_map(answer, *, x=STEP_X, u=STEP_U, dt: float = STEP_DT, L: float 
     a = as_array(answer)
     if not unanswered(answer) and a is not None and a.size == N_STATES and not np.all(np.isfinite(a)):
         return E.mistake("nan")
-    deg = degree_slip(E, answer, expected)  # headings in degrees: before any wrapping
+    deg = slip_before_wrapping(E, answer, expected)  # headings in degrees, x100...: before wrapping
     if deg is not None:
         return deg
     answer, unwrapped = wrap_answer(answer, expected, wrap_state)
@@ -146,7 +146,7 @@ def check_measurement(answer, *, x=MEAS_X) -> Feedback:
     x = require_shape("x", x, (N_STATES,))
     E = MEASUREMENT
     expected = measure(x)
-    deg = degree_slip(E, answer, expected)  # bearings in degrees: before any wrapping
+    deg = slip_before_wrapping(E, answer, expected)  # bearings in degrees, x100...: before wrapping
     if deg is not None:
         return deg
     answer, unwrapped = wrap_answer(answer, expected, wrap_measurement)

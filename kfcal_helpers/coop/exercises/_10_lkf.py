@@ -79,9 +79,9 @@ def check_mc_bounds(answer, *, n_runs: int = MC_RUNS, alpha: float = 0.05) -> Fe
              (np.array([chi2_average_bounds(N_STATES, N, alpha, dof=N_STATES, divide_by=1),
                         chi2_average_bounds(N_MEAS, N, alpha, dof=N_MEAS, divide_by=1)]), "one_run"),
              (np.array([normal_bounds(N_STATES, N, alpha), normal_bounds(N_MEAS, N, alpha)]), "normal")]
-    if abs(alpha - 0.05) < 1e-12:  # the same with the usual 1.96
-        pairs.append((np.array([normal_bounds(N_STATES, N, alpha, 1.96), normal_bounds(N_MEAS, N, alpha, 1.96)]),
-                      "normal"))
+    if abs(alpha - 0.05) < 1e-12:  # the same with the usual 1.96, or the two-sigma rule
+        for z in (1.96, 2.0):
+            pairs.append((np.array([normal_bounds(N_STATES, N, alpha, z), normal_bounds(N_MEAS, N, alpha, z)]), "normal"))
     pairs.append((np.array([expected[0], chi2_bounds(N_STATES, N, alpha)]), "dim6"))  # the NIS with the state's 6
     if N != 50:
         pairs.append((np.array([chi2_bounds(N_STATES, 50, alpha), chi2_bounds(N_MEAS, 50, alpha)]), "notebook_N"))

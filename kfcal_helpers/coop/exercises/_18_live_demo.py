@@ -64,6 +64,7 @@ def check_subset_nis_bounds(answer, *, n_meas: int = 3, n_samples: int = 1001, a
         (stats.chi2.ppf([alpha, 1 - alpha], m * K) / K, "one_sided"),
         (m + np.array([-1.0, 1.0]) * z * np.sqrt(2 * m / K), "normal"),
         (m + np.array([-1.0, 1.0]) * round(z, 2) * np.sqrt(2 * m / K), "normal"),  # with z rounded (1.96)
+        (m + np.array([-1.0, 1.0]) * 2.0 * np.sqrt(2 * m / K), "normal"),  # the two-sigma rule
     ]
     E = replace(SUBSET_NIS_BOUNDS, praise=SUBSET_NIS_BOUNDS.praise.format(m=m, K=K))
     return E.judge(answer, right, distinct_mistakes(pairs, right, _RTOL_NIS), rtol=_RTOL_NIS, atol=0.0)

@@ -59,13 +59,15 @@ MEAS_NAMES = ("the bearing UGV->UAV", "the range", "the bearing UAV->UGV", "the 
 FN_RESULT = "your function's result"
 
 
-def degree_slip(exercise: Exercise, answer, expected):
-    """The degree slip's Feedback (angles given in degrees, :attr:`Exercise.angles`) before the check
-    wraps the answer's angles (a wrapping would hide it), or None."""
+def slip_before_wrapping(exercise: Exercise, answer, expected):
+    """The Feedback of a slip (:func:`~kfcal_helpers.exercises.slip_hint`: units, degrees for the
+    exercise's ``angles``, reversed) of an answer whose angles the check wraps before judging it: the
+    wrapping would hide the slip (an angle in degrees or times 100 wraps to another angle).  None when
+    the answer is no slip of ``expected``."""
     a = finite_of_size(answer, np.size(expected)) if not unanswered(answer) else None
     if a is None:
         return None
-    hint = slip_hint(a, expected, rtol=NUM_RTOL, atol=NUM_ATOL, angles=exercise.angles, scales=False, reverse=False)
+    hint = slip_hint(a, expected, rtol=NUM_RTOL, atol=NUM_ATOL, angles=exercise.angles)
     return None if hint is None else exercise.feedback(False, hint)
 
 
