@@ -191,6 +191,15 @@ def test_shape_hints_diagnose_transposition_and_never_reveal_the_size():
     assert "a matrix" in shape_hint((9,), (3, 3)) and "(3, 3)" not in shape_hint((9,), (3, 3))
 
 
+def test_an_answer_that_is_not_numbers_is_not_told_the_size():
+    from kfcal_helpers.exercises import judge
+
+    for bad in ("abc", {"a": 1}):
+        fb = judge("99.5", bad, np.arange(121.0))
+        assert fb.message == f"expected numbers (a vector (a 1-D array)), got {type(bad).__name__}", str(fb)
+    assert "121" not in str(judge("99.5", "abc", np.arange(121.0)))
+
+
 def test_component_hint_names_one_or_two_entries():
     ex = Exercise("99.7", praise="right", hint="generic", components=("x", "y", "heading"))
     assert ex.judge([1.0, 2.0, 3.035], [1.0, 2.0, 3.0]).message.startswith("only heading is off")

@@ -213,6 +213,11 @@ def _cheap_size(answer, depth: int = 0) -> int | None:
     return None
 
 
+def _kind(ndim: int) -> str:
+    """What an answer of ``ndim`` dimensions is called in a hint (never its size)."""
+    return {0: "a single number", 1: "a vector (a 1-D array)", 2: "a matrix (a 2-D array)"}.get(ndim, f"a {ndim}-D array")
+
+
 def shape_hint(got, expected, what: str = "your answer") -> str:
     """One line on an answer of shape ``got`` where shape ``expected`` is asked, never revealing the
     expected number of entries: a transposed matrix is called transposed, an answer of the right size in
@@ -223,9 +228,8 @@ def shape_hint(got, expected, what: str = "your answer") -> str:
         return (f"{what} is transposed (shape {got}): rows and columns are swapped; check which quantity runs "
                 "along the rows and which along the columns")
     if math.prod(got) == math.prod(expected):
-        kind = {0: "a single number", 1: "a vector (a 1-D array)", 2: "a matrix (a 2-D array)"}.get(
-            len(expected), f"a {len(expected)}-D array")
-        return f"{what} has shape {got}: the exercise asks for {kind} with these entries arranged differently"
+        return (f"{what} has shape {got}: the exercise asks for {_kind(len(expected))} with these entries arranged "
+                "differently")
     return f"{what} has shape {got}, not the shape the exercise asks for: check how many entries you computed"
 
 
@@ -480,7 +484,7 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
     a, why = _to_float(answer)
     if why is not None:
         if why.startswith("expected numbers"):
-            why = f"expected numbers (an array of shape {e.shape}), got {type(answer).__name__}"
+            why = f"expected numbers ({_kind(e.ndim)}), got {type(answer).__name__}"   # never the size
         return Feedback(exercise, False, why)
     if not np.all(np.isfinite(a)):
         return Feedback(exercise, False, NON_FINITE_HINT)
