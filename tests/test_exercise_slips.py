@@ -145,6 +145,7 @@ def _numeric_rows():
     assert heading[5] < 0   # the UAV's heading: [0, 2 pi) differs from (-pi, pi]
     meas = RIGHT["08.2"]
     rows += [("08.2", DEGREES, np.where([1, 0, 1, 0, 0], np.degrees(meas), meas), "your answer is in degrees"),
+             ("08.2", ENTRY, meas * [1, 0.001, 1, 1, 1], "only the range is off, the rest is right: it is 0.001 times"),
              ("08.2", WRAP, np.where([1, 0, 1, 0, 0], np.mod(meas, 2 * np.pi), meas), hint("08.2", "wrap"))]
     return rows
 
@@ -201,12 +202,16 @@ def _function_rows():
         ("10.2", DEGREES, lambda *a: _bearings(coop.lkf_right(*a), deg), "your function's result is in degrees"),
         ("10.2", WRAP, lambda *a: _bearings(coop.lkf_right(*a), mod), hint("10.2", "wrap_2pi")),
         ("10.2", ENTRY, lambda *a: coop.lkf_right(*a) + [0.0, 1.0, 0.0, 0.0, 0.0], "only the range is off"),
+        ("10.2", ENTRY, lambda *a: coop.lkf_right(*a) * [1.0, 100.0, 1.0, 1.0, 1.0],     # the range in cm
+         "only the range is off, the rest is right: it is 100 times the right value: check the units"),
         ("11.1", UNITS, lambda a, b: residual(a, b) / 1000, "your function's result is 0.001 times"),
         ("11.1", DEGREES, lambda a, b: _bearings(residual(a, b).T, deg).T,
          "your function's result is in degrees"),
         ("11.1", WRAP, lambda a, b: _bearings(residual(a, b).T, mod).T, hint("11.1", "mod_2pi")),
         ("11.1", ENTRY, lambda a, b: residual(a, b) + [[0.0], [0.0], [0.0], [2.0], [0.0]],
          "only the UAV's GPS east xi_a is off"),
+        ("11.1", ENTRY, lambda a, b: residual(a, b) * [[180 / math.pi], [1.0], [1.0], [1.0], [1.0]],
+         "only the bearing UGV->UAV is off, the rest is right: it is in degrees"),
         ("12.2", UNITS, lambda a, w: coop.circ_right(a, w) * 10, "your function's result is 10 times the right one"),
         ("12.2", DEGREES, lambda a, w: math.degrees(coop.circ_right(a, w)), "your function's result is in degrees"),
         ("12.2", WRAP, lambda a, w: coop.circ_right(a, w) % (2 * math.pi), hint("12.2", "wrap_2pi")),

@@ -245,3 +245,9 @@ def test_components_of_a_stack_are_named_by_column_and_a_swap_is_called_swapped(
     assert ex.judge(right + [0.0, 0.0, 0.5], right).message.startswith("only c is off")   # off in both rows: named once
     assert ex.judge(right[:, [0, 2, 1]], right).message.startswith("b and c are swapped")
     assert ex.judge(right + 0.5, right).message == "generic"
+    # the wrong entries' slip is said: a units factor, or degrees where they are angles
+    assert ex.judge(right * [1, 100, 1], right).message.startswith("only b is off, the rest is right: it is 100 times")
+    angles = Exercise("99.9", praise="right", hint="generic", components=("a", "b", "c"), angles=(0, 1))
+    assert angles.judge(right * [180 / np.pi, 180 / np.pi, 1], right).message.startswith("your answer is in degrees")
+    assert "only a is off, the rest is right: it is in degrees" in angles.judge(right * [180 / np.pi, 1, 1], right).message
+    assert "degrees" not in ex.judge(right * [180 / np.pi, 1, 1], right).message   # not an angle

@@ -503,7 +503,7 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
         return Feedback(exercise, False, min(near, key=lambda t: t[0])[1])
     slip = slip_hint(a, e, rtol=rtol, atol=atol, angles=angles, what=what) if slips else None
     if slip is None and components:
-        slip = component_hint(a, e, components, rtol=rtol, atol=atol)
+        slip = component_hint(a, e, components, rtol=rtol, atol=atol, angles=angles)
     return Feedback(exercise, False, slip if slip is not None else hint)
 
 

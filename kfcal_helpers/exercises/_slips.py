@@ -88,13 +88,30 @@ def slip_hint(answer, expected, *, rtol: float = 1e-6, atol: float = 1e-12, angl
     return None
 
 
-def component_hint(answer, expected, names, *, rtol: float = 1e-6, atol: float = 1e-12, limit: int = 2) -> str | None:
+def _column_slip(a: np.ndarray, e: np.ndarray, cols, angles, rtol: float, atol: float) -> str | None:
+    """What turns the columns ``cols`` of ``e`` into those of ``a``: a units factor or degrees (for
+    columns among ``angles``), as a few words, or None."""
+    a, e = a[:, cols], e[:, cols]
+    for f in SCALES:
+        for factor in (f, 1 / f):
+            if _close(a, e * factor, rtol, atol) and not _close(e * factor, e, 1e-9, 0.0):
+                return f"{factor:g} times the right value: check the units"
+    among_angles = angles is True or (angles is not None and angles is not False
+                                      and set(cols) <= set(np.asarray(angles, int).tolist()))
+    if among_angles and _close(a, np.degrees(e), rtol, atol):
+        return "in degrees: the exercise asks for radians"
+    return None
+
+
+def component_hint(answer, expected, names, *, rtol: float = 1e-6, atol: float = 1e-12, limit: int = 2,
+                   angles=None) -> str | None:
     """One line naming the components of ``answer`` that differ from ``expected``, by their ``names``,
     when at most ``limit`` of them differ and the rest are right (two that trade places are called
     swapped); else None.  ``names`` has one name per
     entry (flattened), or one per entry of the last axis: then ``expected`` is a stack (a function's
-    outputs, one row per test case) and a component is off when it is off in any row.  Names components,
-    never their values."""
+    outputs, one row per test case) and a component is off when it is off in any row.  When the wrong
+    components are the right ones times a units factor, or in degrees (``angles``: indices along the last
+    axis, or True), the hint says so.  Names components, never their values."""
     e = np.asarray(expected, dtype=float)
     a = np.asarray(answer, dtype=float)
     n = len(names)
@@ -116,6 +133,9 @@ def component_hint(answer, expected, names, *, rtol: float = 1e-6, atol: float =
             return f"{which[0]} and {which[1]} are swapped, the rest is right: check the order of the entries"
     listed = which[0] if k == 1 else ", ".join(which[:-1]) + " and " + which[-1]
     verb = "is" if k == 1 else "are"
+    slip = _column_slip(a, e, list(np.flatnonzero(wrong)), angles, rtol, atol)
+    if slip is not None:
+        return f"only {listed} {verb} off, the rest is right: {'it is' if k == 1 else 'they are'} {slip}"
     return f"only {listed} {verb} off, the rest is right: look again at how you computed {'it' if k == 1 else 'them'}"
 
 
@@ -151,5 +171,5 @@ def output_slip_hint(outputs, expected, names, *, rtol: float = 1e-9, atol: floa
         return first
     if len(off) == 1 and comps[off[0][2]]:
         o, e, i = off[0]
-        return component_hint(o, e, comps[i], rtol=rtol, atol=atol)
+        return component_hint(o, e, comps[i], rtol=rtol, atol=atol, angles=angles_of[i])
     return None
