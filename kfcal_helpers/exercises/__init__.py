@@ -10,8 +10,11 @@ A function answer is called on deep copies of its inputs (a function that change
 which), each call within :data:`TIME_LIMIT` seconds (:mod:`~kfcal_helpers.exercises._limits`), and
 anything it raises (``SystemExit`` included; Ctrl-C excepted) or returns is answered in one line; an
 answer's size is read before any conversion (:func:`too_large`).
+A slip (a units factor, degrees for radians, reversed, transposed, one or two entries off: named) gets
+its own hint, for a judged answer and for a function's outputs alike (:mod:`~kfcal_helpers.exercises._slips`,
+:meth:`Exercise.output_slip`).
 Each exercise's texts are one :class:`Exercise` record (id, praise, hint, the hints of its common
-mistakes) next to its check.  Worked solutions are in ``notebooks/solutions/``.
+mistakes, the names of its entries, which entries are angles) next to its check.  Worked solutions are in ``notebooks/solutions/``.
 """
 
 from ._core import (BAND_NAMES, FORMAT_RULE, GENERIC_HINT, MAX_OUTPUT_ENTRIES, NON_FINITE_HINT, PLACEHOLDER, PLACEHOLDER_FUNC,
