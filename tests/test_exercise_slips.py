@@ -80,6 +80,13 @@ def _units_rows(ex):
             (ex, UNITS, RIGHT[ex] / 1000, "your answer is 0.001 times the right one: check the units")]
 
 
+@pytest.mark.parametrize("exercise", sorted(NO_UNITS))
+def test_indices_masks_ranks_and_counts_get_no_units_hint(exercise):
+    assert not RECORDS[exercise].units
+    fb = CHECK[exercise](RIGHT[exercise] * 10)
+    assert not fb.correct and "units" not in fb.message, str(fb)
+
+
 def _entry_row(ex):
     names = RECORDS[ex].components
     if not names:

@@ -101,6 +101,7 @@ class Exercise:
         ones ("the heading of the UAV"); empty: no per-component hint
     angles : which entries are angles in radians (indices along the last axis, or True for all), for the
         degree slip
+    units : False for an answer without units (indices, counts, ranks, a mask): no units slip is tried
     """
 
     id: str
@@ -109,6 +110,7 @@ class Exercise:
     hints: dict = field(default_factory=dict)
     components: tuple = ()
     angles: object = None
+    units: bool = True
 
     def feedback(self, correct: bool, message: str | None = None, answered: bool = True) -> Feedback:
         """A Feedback of this exercise: ``message`` defaults to the praise (correct) or the hint."""
@@ -130,7 +132,8 @@ class Exercise:
         ``what``: what a slip's hint calls the answer ("your function's result" for a function's outputs)."""
         pairs = [(value, self.hints[key]) for value, key in wrong]
         return judge(self.id, answer, expected, pairs, rtol=rtol, atol=atol, praise=self.praise, hint=self.hint,
-                     placeholder=placeholder, components=self.components, angles=self.angles, what=what)
+                     placeholder=placeholder, components=self.components, angles=self.angles, what=what,
+                     units=self.units)
 
     def output_slip(self, outputs, expected, names, *, rtol: float = 1e-9, atol: float = 1e-12,
                     components=None) -> Feedback | None:
@@ -140,7 +143,7 @@ class Exercise:
         called ``names``) are the ``expected`` ones but for it, else None.  A check calls it after its
         listed mistakes, before its own hint."""
         hint = output_slip_hint(outputs, expected, names, rtol=rtol, atol=atol, angles=self.angles,
-                                components=components)
+                                components=components, units=self.units)
         return None if hint is None else Feedback(self.id, False, hint)
 
 
@@ -457,7 +460,7 @@ def _distance(a: np.ndarray, v: np.ndarray) -> float:
 
 def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol: float = 1e-12,
           praise: str = "well done", hint: str = GENERIC_HINT, placeholder: str = "replace ... with your answer",
-          components=(), angles=None, slips: bool = True, what: str = ANSWER) -> Feedback:
+          components=(), angles=None, slips: bool = True, what: str = ANSWER, units: bool = True) -> Feedback:
     """The verdict on ``answer`` against ``expected`` and the common mistakes.
 
     wrong : sequence of ``(value, hint)`` pairs: the value a common mistake gives and the
@@ -470,7 +473,7 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
     nobody can tell them apart); a rounding of a mistake's value only gets that mistake's hint.  An
     answer that is none of these but the right one with a slip (:mod:`~kfcal_helpers.exercises._slips`:
     scaled by a power of ten, in degrees where ``angles`` are radians, reversed, transposed) gets that
-    slip's hint, calling the answer ``what`` (``slips=False``: not tried); one right in all but one or two
+    slip's hint, calling the answer ``what`` (``slips=False``: not tried; ``units=False``: no units slip); one right in all but one or two
     entries gets a hint naming them by ``components`` (one name per entry, or per entry of the last axis
     of a stack of a function's outputs).  An answer larger than every expected value is judged from its shape alone,
     before any conversion (:func:`too_large`).
@@ -501,9 +504,9 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
     near = [(_distance(a.ravel(), np.asarray(v, dtype=float).ravel()), why) for v, why in wrong if is_rounding(a, v)]
     if near:
         return Feedback(exercise, False, min(near, key=lambda t: t[0])[1])
-    slip = slip_hint(a, e, rtol=rtol, atol=atol, angles=angles, what=what) if slips else None
+    slip = slip_hint(a, e, rtol=rtol, atol=atol, angles=angles, what=what, scales=units) if slips else None
     if slip is None and components:
-        slip = component_hint(a, e, components, rtol=rtol, atol=atol, angles=angles)
+        slip = component_hint(a, e, components, rtol=rtol, atol=atol, angles=angles, units=units)
     return Feedback(exercise, False, slip if slip is not None else hint)
 
 

@@ -88,11 +88,11 @@ def slip_hint(answer, expected, *, rtol: float = 1e-6, atol: float = 1e-12, angl
     return None
 
 
-def _column_slip(a: np.ndarray, e: np.ndarray, cols, angles, rtol: float, atol: float) -> str | None:
+def _column_slip(a: np.ndarray, e: np.ndarray, cols, angles, rtol: float, atol: float, units: bool) -> str | None:
     """What turns the columns ``cols`` of ``e`` into those of ``a``: a units factor or degrees (for
     columns among ``angles``), as a few words, or None."""
     a, e = a[:, cols], e[:, cols]
-    for f in SCALES:
+    for f in SCALES if units else ():
         for factor in (f, 1 / f):
             if _close(a, e * factor, rtol, atol) and not _close(e * factor, e, 1e-9, 0.0):
                 return f"{factor:g} times the right value: check the units"
@@ -104,14 +104,14 @@ def _column_slip(a: np.ndarray, e: np.ndarray, cols, angles, rtol: float, atol: 
 
 
 def component_hint(answer, expected, names, *, rtol: float = 1e-6, atol: float = 1e-12, limit: int = 2,
-                   angles=None) -> str | None:
+                   angles=None, units: bool = True) -> str | None:
     """One line naming the components of ``answer`` that differ from ``expected``, by their ``names``,
     when at most ``limit`` of them differ and the rest are right (two that trade places are called
     swapped); else None.  ``names`` has one name per
     entry (flattened), or one per entry of the last axis: then ``expected`` is a stack (a function's
     outputs, one row per test case) and a component is off when it is off in any row.  When the wrong
     components are the right ones times a units factor, or in degrees (``angles``: indices along the last
-    axis, or True), the hint says so.  Names components, never their values."""
+    axis, or True), the hint says so (``units=False``: no units factor).  Names components, never their values."""
     e = np.asarray(expected, dtype=float)
     a = np.asarray(answer, dtype=float)
     n = len(names)
@@ -133,14 +133,14 @@ def component_hint(answer, expected, names, *, rtol: float = 1e-6, atol: float =
             return f"{which[0]} and {which[1]} are swapped, the rest is right: check the order of the entries"
     listed = which[0] if k == 1 else ", ".join(which[:-1]) + " and " + which[-1]
     verb = "is" if k == 1 else "are"
-    slip = _column_slip(a, e, list(np.flatnonzero(wrong)), angles, rtol, atol)
+    slip = _column_slip(a, e, list(np.flatnonzero(wrong)), angles, rtol, atol, units)
     if slip is not None:
         return f"only {listed} {verb} off, the rest is right: {'it is' if k == 1 else 'they are'} {slip}"
     return f"only {listed} {verb} off, the rest is right: look again at how you computed {'it' if k == 1 else 'them'}"
 
 
 def output_slip_hint(outputs, expected, names, *, rtol: float = 1e-9, atol: float = 1e-12, angles=None,
-                     components=None) -> str | None:
+                     components=None, units: bool = True) -> str | None:
     """The slip hint for a student's function whose outputs are right but for a slip: ``outputs`` and
     ``expected`` are sequences of float arrays (the function's results, e.g. ``(p, v)``, each stacked over
     the test cases), ``names`` what each is called ("p", "v").  When every output is right or the right
@@ -148,7 +148,7 @@ def output_slip_hint(outputs, expected, names, *, rtol: float = 1e-9, atol: floa
     with one per output, or one for all), reversed, transposed) and one is slipped, the first slipped output's hint
     ("your function's p is 10 times the right one: ..."); else, with ``components`` (names of each
     output's entries or of the entries along its last axis: a list with one tuple (or None) per output), the hint naming the one or two wrong components of the one
-    output that is off.  None otherwise."""
+    output that is off.  ``units=False``: no units slip.  None otherwise."""
     outputs = [np.asarray(o, dtype=float) for o in outputs]
     expected = [np.asarray(e, dtype=float) for e in expected]
     per = lambda v: v if isinstance(v, list) and len(v) == len(expected) else [v] * len(expected)  # noqa: E731
@@ -162,7 +162,7 @@ def output_slip_hint(outputs, expected, names, *, rtol: float = 1e-9, atol: floa
         if _close(o.reshape(e.shape), e, rtol, atol):
             continue
         off.append((o, e, i))
-        hint = slip_hint(o, e, rtol=rtol, atol=atol, angles=ang, what=f"your function's {name}")
+        hint = slip_hint(o, e, rtol=rtol, atol=atol, angles=ang, what=f"your function's {name}", scales=units)
         if hint is None:
             first = False
         elif first is None:
@@ -171,5 +171,5 @@ def output_slip_hint(outputs, expected, names, *, rtol: float = 1e-9, atol: floa
         return first
     if len(off) == 1 and comps[off[0][2]]:
         o, e, i = off[0]
-        return component_hint(o, e, comps[i], rtol=rtol, atol=atol, angles=angles_of[i])
+        return component_hint(o, e, comps[i], rtol=rtol, atol=atol, angles=angles_of[i], units=units)
     return None

@@ -29,6 +29,7 @@ _GPS_FIX_INDICES = Exercise(
         "rate": f"use the exercise's GPS rate ({GPS_FIX_RATE:g} Hz): the spacing is f_imu/f_gps samples",
         "one_based": "indices start at 0 (Python), not at 1",
     },
+    units=False,
 )
 
 

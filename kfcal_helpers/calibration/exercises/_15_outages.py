@@ -24,6 +24,7 @@ _OUTAGE_MASK = Exercise(
         "inverted": "True marks a MISSING fix (as outage_mask returns), not a fix that is used",
         "imu_rate": "one entry per GPS fix, not per IMU sample",
     },
+    units=False,
 )
 
 

@@ -132,6 +132,7 @@ OBS_RANK = Exercise(
         "reversed": "the first entry is the window of m = 1 step, the second the longer one",
     },
     components=("the rank of the 1-step window", "the rank of the longer window"),
+    units=False,
 )
 
 

@@ -119,6 +119,7 @@ LOST_DIRECTIONS = Exercise(
         "no_bearings_lost": "for the subset without the bearings, count with the stacked O over all 10 samples, not from one sample's geometry: build O with rows (1, 3, 4) and compute 6 - rank",
     },
     components=("the count without the bearings", "the count without the GPS north", "the count with the bearings only"),
+    units=False,
 )
 
 
