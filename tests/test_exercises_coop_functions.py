@@ -100,8 +100,10 @@ def test_every_hint_has_a_wrong_answer_test():
 
 
 def test_unknown_wrong_function_gets_the_generic_hint():
-    fb = check_measure_function(lambda x: h_loops(x) + np.array([0.0, 1.0, 0.0, 0.0, 0.0]))   # range 1 m long
+    fb = check_measure_function(lambda x: h_loops(x) + np.array([0.0, 1.0, 0.0, 1.0, 1.0]))   # range and GPS off
     assert not fb.correct and fb.message == EXERCISES["08.3"].hint != GENERIC_HINT
+    fb = check_measure_function(lambda x: h_loops(x) + np.array([0.0, 1.0, 0.0, 0.0, 0.0]))   # range 1 m long
+    assert not fb.correct and fb.message.startswith("only the range is off, the rest is right"), str(fb)
 
 
 @pytest.mark.parametrize("fn", [..., None, 3.0, "h", lambda x: None, lambda x: ..., lambda x: 1 / 0,
@@ -152,7 +154,7 @@ def _wrapped_to_0_2pi(x):
     (_changes_its_stack, "don't modify your inputs: your function changed x"),
     (_rows_not_last_axis, "for a stack your function returns (5, K)"),
     (_wrapped_to_0_2pi, "wrapped to [0, 2 pi)"),
-    (lambda x: _h_vectorised(x)[..., [0, 2, 1, 3, 4]], "in its order: [bearing UGV->UAV"),
+    (lambda x: _h_vectorised(x)[..., [0, 2, 1, 3, 4]], "the range and the bearing UAV->UGV are swapped"),
 ])
 def test_08_3_stack_slips_get_their_own_hint(fn, hint):
     """A cold reading's cases: a function that changes a stack, measurements on the first axis, bearings in

@@ -191,6 +191,15 @@ def test_shape_hints_diagnose_transposition_and_never_reveal_the_size():
     assert "a matrix" in shape_hint((9,), (3, 3)) and "(3, 3)" not in shape_hint((9,), (3, 3))
 
 
+def test_an_answer_that_is_not_numbers_is_not_told_the_size():
+    from kfcal_helpers.exercises import judge
+
+    for bad in ("abc", {"a": 1}):
+        fb = judge("99.5", bad, np.arange(121.0))
+        assert fb.message == f"expected numbers (a vector (a 1-D array)), got {type(bad).__name__}", str(fb)
+    assert "121" not in str(judge("99.5", "abc", np.arange(121.0)))
+
+
 def test_component_hint_names_one_or_two_entries():
     ex = Exercise("99.7", praise="right", hint="generic", components=("x", "y", "heading"))
     assert ex.judge([1.0, 2.0, 3.035], [1.0, 2.0, 3.0]).message.startswith("only heading is off")
@@ -212,3 +221,33 @@ def test_call_student_gives_copies_and_names_a_changed_input():
     seen = []
     call_student("99.8", lambda v: seen.append(v) or 1.0, [(data,)])
     assert seen[0] is not data and np.array_equal(seen[0], data)   # a deep copy, never the check's own array
+
+
+def test_a_functions_outputs_get_the_slips_of_a_judged_answer():
+    from kfcal_helpers.exercises import output_slip_hint
+
+    p, v = np.array([1.0, 2.5, 4.0]), np.array([2.0, 3.0, -1.0])
+    assert output_slip_hint([p * 100, v], [p, v], ("p", "v")).startswith("your function's p is 100 times the right one")
+    assert output_slip_hint([p, v / 1000], [p, v], ("p", "v")).startswith("your function's v is 0.001 times")
+    assert "reverse order" in output_slip_hint([p[::-1], v], [p, v], ("p", "v"))
+    assert output_slip_hint([p * 100, v + 1], [p, v], ("p", "v")) is None     # one output slipped, one wrong: no slip
+    assert output_slip_hint([p, v], [p, v], ("p", "v")) is None
+    stack = np.array([[0.5, 10.0], [-2.0, 20.0]])                               # two test cases of [angle, range]
+    deg = stack * [180 / np.pi, 1.0]
+    assert "in degrees" in output_slip_hint([deg], [stack], ("result",), angles=(0,))
+    assert output_slip_hint([stack + [0.0, 1.0]], [stack], ("result",), components=[("the angle", "the range")]) \
+        .startswith("only the range is off")
+
+
+def test_components_of_a_stack_are_named_by_column_and_a_swap_is_called_swapped():
+    ex = Exercise("99.9", praise="right", hint="generic", components=("a", "b", "c"))
+    right = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
+    assert ex.judge(right + [0.0, 0.0, 0.5], right).message.startswith("only c is off")   # off in both rows: named once
+    assert ex.judge(right[:, [0, 2, 1]], right).message.startswith("b and c are swapped")
+    assert ex.judge(right + 0.5, right).message == "generic"
+    # the wrong entries' slip is said: a units factor, or degrees where they are angles
+    assert ex.judge(right * [1, 100, 1], right).message.startswith("only b is off, the rest is right: it is 100 times")
+    angles = Exercise("99.9", praise="right", hint="generic", components=("a", "b", "c"), angles=(0, 1))
+    assert angles.judge(right * [180 / np.pi, 180 / np.pi, 1], right).message.startswith("your answer is in degrees")
+    assert "only a is off, the rest is right: it is in degrees" in angles.judge(right * [180 / np.pi, 1, 1], right).message
+    assert "degrees" not in ex.judge(right * [180 / np.pi, 1, 1], right).message   # not an angle

@@ -31,15 +31,17 @@ from scipy import stats
 
 from ._limits import (TIME_LIMIT, TimeLimitExceeded, can_interrupt, changed_input, copies, run_limited, time_limit,
                       time_limit_hint)
-from ._slips import component_hint, slip_hint
+from ._slips import ANSWER, component_hint, output_slip_hint, slip_hint
 
 __all__ = ["Feedback", "Exercise", "unanswered", "as_array", "answer_problem", "matches", "is_rounding", "judge",
            "call_student", "answer_shape", "shape_hint", "too_large", "TIME_LIMIT", "MAX_OUTPUT_ENTRIES", "first_line", "chi2_average_bounds", "distinct_mistakes", "GENERIC_HINT", "PLACEHOLDER",
-           "PLACEHOLDER_FUNC", "FORMAT_RULE", "ROUNDED_HINT", "NON_FINITE_HINT"]
+           "PLACEHOLDER_FUNC", "FORMAT_RULE", "BAND_NAMES", "ROUNDED_HINT", "NON_FINITE_HINT"]
 
 #: the answer-format rule of every exercise, stated once (exercise texts and feedback repeat it)
 FORMAT_RULE = "pass the value you computed (a variable or an expression), with no rounding"
 GENERIC_HINT = "compare your answer with the formula in the notebook, term by term"
+#: the entries of a band [lower, upper], for the hint that names the wrong one
+BAND_NAMES = ("the lower bound", "the upper bound")
 PLACEHOLDER = "replace ... with your answer"
 #: the message for an answer that is the expected value rounded (to some decimals or significant figures)
 ROUNDED_HINT = f"close, but these digits look rounded: {FORMAT_RULE}; the checks compare at full precision"
@@ -94,9 +96,12 @@ class Exercise:
     praise : the line shown with a correct answer (what the answer teaches)
     hint : the hint when the answer is wrong in no recognised way
     hints : ``{mistake key: hint}`` for the common mistakes the check recognises (never the answer)
-    components : names of the answer's entries (flattened), for the hint that names the wrong ones
-        ("the heading of the UAV"); empty: no per-component hint
-    angles : which entries are angles in radians (indices, or True for all), for the degree slip
+    components : names of the answer's entries (flattened), or of the entries along its last axis (a
+        function's outputs stacked over the test cases), for the hint that names the one or two wrong
+        ones ("the heading of the UAV"); empty: no per-component hint
+    angles : which entries are angles in radians (indices along the last axis, or True for all), for the
+        degree slip
+    units : False for an answer without units (indices, counts, ranks, a mask): no units slip is tried
     """
 
     id: str
@@ -105,6 +110,7 @@ class Exercise:
     hints: dict = field(default_factory=dict)
     components: tuple = ()
     angles: object = None
+    units: bool = True
 
     def feedback(self, correct: bool, message: str | None = None, answered: bool = True) -> Feedback:
         """A Feedback of this exercise: ``message`` defaults to the praise (correct) or the hint."""
@@ -121,11 +127,24 @@ class Exercise:
         return Feedback(self.id, False, placeholder, answered=False)
 
     def judge(self, answer, expected, wrong=(), *, rtol: float = 1e-6, atol: float = 1e-12,
-              placeholder: str = PLACEHOLDER) -> Feedback:
-        """:func:`judge` with this exercise's praise and hint; ``wrong`` holds ``(value, mistake key)`` pairs."""
+              placeholder: str = PLACEHOLDER, what: str = ANSWER) -> Feedback:
+        """:func:`judge` with this exercise's praise and hint; ``wrong`` holds ``(value, mistake key)`` pairs;
+        ``what``: what a slip's hint calls the answer ("your function's result" for a function's outputs)."""
         pairs = [(value, self.hints[key]) for value, key in wrong]
         return judge(self.id, answer, expected, pairs, rtol=rtol, atol=atol, praise=self.praise, hint=self.hint,
-                     placeholder=placeholder, components=self.components, angles=self.angles)
+                     placeholder=placeholder, components=self.components, angles=self.angles, what=what,
+                     units=self.units)
+
+    def output_slip(self, outputs, expected, names, *, rtol: float = 1e-9, atol: float = 1e-12,
+                    components=None) -> Feedback | None:
+        """For a function exercise: the Feedback naming the slip (:func:`output_slip_hint`: ×10, ×100,
+        ×1000 and inverses, degrees where this exercise's ``angles`` are radians, reversed, transposed;
+        or the one or two wrong ``components``) when the function's ``outputs`` (a sequence of arrays
+        called ``names``) are the ``expected`` ones but for it, else None.  A check calls it after its
+        listed mistakes, before its own hint."""
+        hint = output_slip_hint(outputs, expected, names, rtol=rtol, atol=atol, angles=self.angles,
+                                components=components, units=self.units)
+        return None if hint is None else Feedback(self.id, False, hint)
 
 
 def first_line(exc: BaseException, limit: int = 100) -> str:
@@ -197,6 +216,11 @@ def _cheap_size(answer, depth: int = 0) -> int | None:
     return None
 
 
+def _kind(ndim: int) -> str:
+    """What an answer of ``ndim`` dimensions is called in a hint (never its size)."""
+    return {0: "a single number", 1: "a vector (a 1-D array)", 2: "a matrix (a 2-D array)"}.get(ndim, f"a {ndim}-D array")
+
+
 def shape_hint(got, expected, what: str = "your answer") -> str:
     """One line on an answer of shape ``got`` where shape ``expected`` is asked, never revealing the
     expected number of entries: a transposed matrix is called transposed, an answer of the right size in
@@ -207,9 +231,8 @@ def shape_hint(got, expected, what: str = "your answer") -> str:
         return (f"{what} is transposed (shape {got}): rows and columns are swapped; check which quantity runs "
                 "along the rows and which along the columns")
     if math.prod(got) == math.prod(expected):
-        kind = {0: "a single number", 1: "a vector (a 1-D array)", 2: "a matrix (a 2-D array)"}.get(
-            len(expected), f"a {len(expected)}-D array")
-        return f"{what} has shape {got}: the exercise asks for {kind} with these entries arranged differently"
+        return (f"{what} has shape {got}: the exercise asks for {_kind(len(expected))} with these entries arranged "
+                "differently")
     return f"{what} has shape {got}, not the shape the exercise asks for: check how many entries you computed"
 
 
@@ -437,7 +460,7 @@ def _distance(a: np.ndarray, v: np.ndarray) -> float:
 
 def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol: float = 1e-12,
           praise: str = "well done", hint: str = GENERIC_HINT, placeholder: str = "replace ... with your answer",
-          components=(), angles=None, slips: bool = True) -> Feedback:
+          components=(), angles=None, slips: bool = True, what: str = ANSWER, units: bool = True) -> Feedback:
     """The verdict on ``answer`` against ``expected`` and the common mistakes.
 
     wrong : sequence of ``(value, hint)`` pairs: the value a common mistake gives and the
@@ -450,8 +473,9 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
     nobody can tell them apart); a rounding of a mistake's value only gets that mistake's hint.  An
     answer that is none of these but the right one with a slip (:mod:`~kfcal_helpers.exercises._slips`:
     scaled by a power of ten, in degrees where ``angles`` are radians, reversed, transposed) gets that
-    slip's hint (``slips=False``: not tried); one right in all but one or two entries gets a hint naming
-    them by ``components``.  An answer larger than every expected value is judged from its shape alone,
+    slip's hint, calling the answer ``what`` (``slips=False``: not tried; ``units=False``: no units slip); one right in all but one or two
+    entries gets a hint naming them by ``components`` (one name per entry, or per entry of the last axis
+    of a stack of a function's outputs).  An answer larger than every expected value is judged from its shape alone,
     before any conversion (:func:`too_large`).
     """
     if unanswered(answer):
@@ -463,7 +487,7 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
     a, why = _to_float(answer)
     if why is not None:
         if why.startswith("expected numbers"):
-            why = f"expected numbers (an array of shape {e.shape}), got {type(answer).__name__}"
+            why = f"expected numbers ({_kind(e.ndim)}), got {type(answer).__name__}"   # never the size
         return Feedback(exercise, False, why)
     if not np.all(np.isfinite(a)):
         return Feedback(exercise, False, NON_FINITE_HINT)
@@ -480,9 +504,9 @@ def judge(exercise: str, answer, expected, wrong=(), *, rtol: float = 1e-6, atol
     near = [(_distance(a.ravel(), np.asarray(v, dtype=float).ravel()), why) for v, why in wrong if is_rounding(a, v)]
     if near:
         return Feedback(exercise, False, min(near, key=lambda t: t[0])[1])
-    slip = slip_hint(a, e, rtol=rtol, atol=atol, angles=angles) if slips else None
+    slip = slip_hint(a, e, rtol=rtol, atol=atol, angles=angles, what=what, scales=units) if slips else None
     if slip is None and components:
-        slip = component_hint(a, e, components, rtol=rtol, atol=atol)
+        slip = component_hint(a, e, components, rtol=rtol, atol=atol, angles=angles, units=units)
     return Feedback(exercise, False, slip if slip is not None else hint)
 
 

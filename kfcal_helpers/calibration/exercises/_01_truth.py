@@ -151,6 +151,9 @@ def check_euler_truth(func) -> Feedback:
         pw, vw = _euler_variant(a, p0, v0, dt, kind)
         if close(p, pw) and close(v, vw):
             return ex.mistake(kind)
+    slip = ex.output_slip([p, v], [p_ok, v_ok], ("p", "v"))
+    if slip is not None:
+        return slip
     if close(v, v_ok):
         return ex.feedback(False, "v is right, p is not: " + ex.hint)
     return ex.feedback(False)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from ...exercises._core import (Exercise, Feedback, as_array, chi2_average_bounds)
+from ...exercises._core import (BAND_NAMES, Exercise, Feedback, as_array, chi2_average_bounds)
 from ...validation import (require_finite, require_int, require_positive,
                           require_probability)
 from ..simulation import integrate_left
@@ -27,6 +27,7 @@ _IMU_DRIFT = Exercise(
         "swapped": "give [δp, δv] in this order: position first",
         "no_initial": "the initial errors δp0 and δv0 are still in δp and δv: the bias only adds to them",
     },
+    components=("δp", "δv"),
 )
 
 
@@ -57,6 +58,7 @@ _IMU_RANDOM_WALK = Exercise(
         "steps": "check the step count: the noise samples before t number n = t/Δt (samples 0 … n-1), not one "
                  "more or one less",
     },
+    components=("σ_p", "σ_v"),
 )
 
 
@@ -90,6 +92,7 @@ _IMU_STD_BAND = Exercise(
         "normal": "close, but that is the normal approximation σ(1 ± z/√(2(n-1))): use the exact chi-square "
                   "quantiles",
     },
+    components=BAND_NAMES,
 )
 
 
@@ -106,7 +109,8 @@ def check_imu_std_band(answer, *, sigma: float = 0.02, n: int = 50, alpha: float
              ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, one_sided=True))),
              ("no_divide", sigma * np.sqrt(chi2_average_bounds(1, n - 1, alpha, divide_by=1))),
              ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * (n - 1)))),
-             ("normal", sigma * (1 + np.array([-1.96, 1.96]) / np.sqrt(2 * (n - 1))))]  # with the usual 1.96
+             ("normal", sigma * (1 + np.array([-1.96, 1.96]) / np.sqrt(2 * (n - 1)))),  # with the usual 1.96
+             ("normal", sigma * (1 + np.array([-2.0, 2.0]) / np.sqrt(2 * (n - 1))))]  # or the two-sigma rule
     return numeric(_IMU_STD_BAND, answer, right, wrong)
 
 
@@ -182,6 +186,9 @@ def check_dead_reckoning(func) -> Feedback:
         pw, vw = _reckon_variant(a_c, p_init, v_init, dt, kind)
         if close(p, pw) and close(v, vw):
             return ex.mistake(kind)
+    slip = ex.output_slip([p, v], [p_ok, v_ok], ("p_c", "v_c"))
+    if slip is not None:
+        return slip
     if close(v, v_ok):
         return ex.feedback(False, "v_c is right, p_c is not: " + ex.hint)
     return ex.feedback(False)
@@ -238,7 +245,8 @@ def check_imu_output(func) -> Feedback:
     for key, value in variants:
         if close(got, value):
             return ex.mistake(key)
-    return ex.feedback(False)
+    slip = ex.output_slip([got], [right], ("a_c",))
+    return ex.feedback(False) if slip is None else slip
 
 
 #: the exercise records of this lesson, in notebook order

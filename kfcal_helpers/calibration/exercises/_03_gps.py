@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from ...exercises._core import (Exercise, Feedback, as_array, chi2_average_bounds)
+from ...exercises._core import (BAND_NAMES, Exercise, Feedback, as_array, chi2_average_bounds)
 from ...validation import (require_finite, require_int, require_positive,
                           require_probability)
 from ..params import CalibrationParams
@@ -29,6 +29,7 @@ _GPS_FIX_INDICES = Exercise(
         "rate": f"use the exercise's GPS rate ({GPS_FIX_RATE:g} Hz): the spacing is f_imu/f_gps samples",
         "one_based": "indices start at 0 (Python), not at 1",
     },
+    units=False,
 )
 
 
@@ -56,6 +57,7 @@ _GPS_DZ = Exercise(
         "noise": "that is the GPS noise η = z - truth; the filter never sees the truth",
         "truth": "that is H δx (truth minus IMU); the filter's measurement uses the GPS instead of the truth",
     },
+    components=("δz_p", "δz_v"),
 )
 
 
@@ -84,6 +86,7 @@ _GPS_RMS_BAND = Exercise(
         "one_sided": "a two-sided 95 % band puts α/2 = 2.5 % in each tail, not 5 %",
         "normal": "close, but that is the normal approximation: use the exact chi-square quantiles",
     },
+    components=BAND_NAMES,
 )
 
 
@@ -99,7 +102,8 @@ def check_gps_rms_band(answer, *, sigma: float = 0.04, n: int = 100, alpha: floa
              ("variance", sigma**2 * chi2_average_bounds(1, n, alpha)),
              ("one_sided", sigma * np.sqrt(chi2_average_bounds(1, n, alpha, one_sided=True))),
              ("normal", sigma * (1 + np.array([-z, z]) / np.sqrt(2 * n))),
-             ("normal", sigma * (1 + np.array([-1.96, 1.96]) / np.sqrt(2 * n)))]  # with the usual 1.96
+             ("normal", sigma * (1 + np.array([-1.96, 1.96]) / np.sqrt(2 * n))),  # with the usual 1.96
+             ("normal", sigma * (1 + np.array([-2.0, 2.0]) / np.sqrt(2 * n)))]  # or the two-sigma rule
     return numeric(_GPS_RMS_BAND, answer, right, wrong)
 
 
@@ -113,6 +117,9 @@ def _gps_test():
                     [[-0.6, 0.04], [0.2, -0.01], [1.3, 0.02], [-0.7, 0.06]]])
     return p, v, eta, 4
 
+
+#: 03.4: the entries of z along its last axis, for the hint that names the wrong one
+Z_ENTRIES = ("the position z[..., 0]", "the velocity z[..., 1]")
 
 _GPS_MEASUREMENT = Exercise(
     "03.4",
@@ -160,7 +167,8 @@ def check_gps_measurement(func) -> Feedback:
     for key, value in variants:
         if close(got, value):
             return ex.mistake(key)
-    return ex.feedback(False)
+    slip = ex.output_slip([got], [truth + eta], ("z",), components=[Z_ENTRIES])
+    return ex.feedback(False) if slip is None else slip
 
 
 

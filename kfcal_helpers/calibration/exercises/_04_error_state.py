@@ -7,10 +7,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...exercises._core import (Exercise, Feedback)
+from ...exercises._core import (Exercise, Feedback, as_array, too_large, unanswered)
 from ...validation import (require_positive)
 from ..error_model import error_state_model, phi_power
 from ..params import CalibrationParams
+from ...exercises._slips import matrix_names
 from ._shared import numeric
 
 
@@ -33,6 +34,7 @@ _PHI_100HZ = Exercise(
                       "triangular)",
         "no_half": "the position effect of the bias over one step is Δt²/2, with the 1/2",
     },
+    components=matrix_names("Φ", 3),
 )
 
 
@@ -61,6 +63,7 @@ _GAMMA_100HZ = Exercise(
         "rate": "use the exercise's IMU rate (100 Hz), so Δt changes",
         "bias_noise": "the bias is constant over a run: w does not drive it",
     },
+    components=("Γ[0]", "Γ[1]", "Γ[2]"),
 )
 
 
@@ -71,13 +74,12 @@ def check_gamma_100hz(answer, *, imu_rate: float = 100.0) -> Feedback:
     right = error_state_model(CalibrationParams(imu_rate=imu_rate, gps_rate=imu_rate / 20)).Gamma
     wrong = [("dt_first", [-dt, -dt, 0.0]), ("no_half", [-dt**2, -dt, 0.0]),
              ("rate", [-0.005**2 / 2, -0.005, 0.0]), ("bias_noise", [-dt**2 / 2, -dt, 1.0])]
-    fb = numeric(_GAMMA_100HZ, answer, right, wrong)
-    if fb.correct or fb.message != _GAMMA_100HZ.hint:
-        return fb
-    # -Γ gives the same Q: right too (and its mistakes are the same mistakes)
-    flipped = replace(_GAMMA_100HZ, praise=GAMMA_OTHER_SIGN_PRAISE)
-    other = numeric(flipped, answer, -right, [(k, -np.asarray(v, dtype=float)) for k, v in wrong])
-    return other if other.correct or other.message != _GAMMA_100HZ.hint else fb
+    a = as_array(answer) if not unanswered(answer) and too_large(answer, right) is None else None
+    if a is not None and a.size == 3 and np.all(np.isfinite(a)) and a.ravel()[1] > 0:
+        # -Γ gives the same Q: right too, judged as Γ is (its mistakes and slips are the same, sign flipped)
+        flipped = replace(_GAMMA_100HZ, praise=GAMMA_OTHER_SIGN_PRAISE)
+        return numeric(flipped, answer, -right, [(k, -np.asarray(v, dtype=float)) for k, v in wrong])
+    return numeric(_GAMMA_100HZ, answer, right, wrong)
 
 
 _PHI_FIX_TO_FIX = Exercise(
@@ -92,6 +94,7 @@ _PHI_FIX_TO_FIX = Exercise(
         "signs": "the bias column keeps its minus signs in every power of Φ",
         "one_short": "from one fix to the next is f_imu/f_gps steps, not one fewer",
     },
+    components=matrix_names("Φ^k", 3),
 )
 
 
@@ -118,6 +121,7 @@ _M0 = Exercise(
         "swapped": "the state order is [δp, δv, b]: the position variance comes first",
         "default": "use the exercise's standard deviations, not the notebook's defaults",
     },
+    components=matrix_names("M0", 3),
 )
 
 

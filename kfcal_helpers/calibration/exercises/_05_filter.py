@@ -12,6 +12,7 @@ from ...validation import (require_covariance)
 from ..error_model import error_state_model, phi_power
 from ..filters import covariance_sequence
 from ..params import CalibrationParams
+from ...exercises._slips import matrix_names
 from ._shared import call_once, close, numeric, as_pair
 
 
@@ -30,6 +31,10 @@ def _predict(x, P, Phi, Q, n, transposed=False, q=True):
         P = (Phi.T @ P @ Phi if transposed else Phi @ P @ Phi.T) + (Q if q else 0.0)
     return x, P
 
+
+#: the entries of x̄ and of M (flattened, row by row), for the hints that name the wrong ones (05.1)
+X_ENTRIES = ("x̄[0] (δp)", "x̄[1] (δv)", "x̄[2] (b)")
+M_ENTRIES = tuple(f"M[{i},{j}]" for i in range(3) for j in range(3))
 
 _PREDICT_ONLY = Exercise(
     "05.1",
@@ -76,6 +81,9 @@ def check_predict_only(func) -> Feedback:
     for key, (xw, Pw) in variants:
         if close(x, xw, **tol) and close(P, Pw, **tol):
             return ex.mistake(key)
+    slip = ex.output_slip([x, P], [x_ok, P_ok], ("x̄", "M"), components=[X_ENTRIES, M_ENTRIES], **tol)
+    if slip is not None:
+        return slip
     if close(x, x_ok, **tol):
         return ex.feedback(False, "x̄ is right, M is not: " + ex.hint)
     if close(P, P_ok, **tol):
@@ -100,6 +108,7 @@ _FIRST_GAIN = Exercise(
         "no_p": "K = M Hᵀ S⁻¹: the a priori covariance M multiplies Hᵀ S⁻¹",
         "shape": "K maps a measurement (2) to a state correction (3): shape (3, 2)",
     },
+    components=matrix_names("K", 3, 2),
 )
 
 
@@ -133,6 +142,7 @@ _SECOND_GAIN = Exercise(
         "first_gain": "that is the gain at the first fix (t = 0, exercise 05.2); the exercise asks for the one at the "
                       "second fix, after the first update and 0.2 s of prediction",
     },
+    components=matrix_names("K", 3, 2),
 )
 
 

@@ -8,7 +8,7 @@ import numpy as np
 from scipy import stats
 
 from ...consistency import chi2_bounds
-from ...exercises._core import (Exercise, Feedback, chi2_average_bounds)
+from ...exercises._core import (BAND_NAMES, Exercise, Feedback, chi2_average_bounds)
 from ...validation import (require_finite, require_int, require_probability)
 from ._shared import numeric
 
@@ -25,6 +25,7 @@ _MC_NIS_BOUNDS = Exercise(
         "sum": "these bound the sum over runs: the exercise asks for the run average (divide by N)",
         "n_minus_1": "the run average of N independent NIS values has 2N degrees of freedom: no N - 1 here",
     },
+    components=BAND_NAMES,
 )
 
 
@@ -54,6 +55,7 @@ _FISHER_BAND = Exercise(
         "z_two": "right method, but z = 2 is not the quantile: the two-sided 95 % band uses the 97.5 % normal quantile "
                  "(scipy.stats.norm.ppf)",
     },
+    components=BAND_NAMES,
 )
 
 
@@ -93,6 +95,7 @@ _SIMULTANEOUS_NEES_BAND = Exercise(
         "dof3": "one NEES has 3 degrees of freedom, but the sum of N independent ones has 3N: use χ²_{3N}, then "
                 "divide by N",
     },
+    components=BAND_NAMES,
 )
 
 

@@ -22,8 +22,9 @@ _OUTAGE_MASK = Exercise(
         "closed": "the window is half-open, t_s <= t < t_e: the fix at t_e is the first one back",
         "open_start": "the window is half-open, t_s <= t < t_e: the fix at t_s is already missing",
         "inverted": "True marks a MISSING fix (as outage_mask returns), not a fix that is used",
-        "imu_rate": "one entry per GPS fix (151), not per IMU sample",
+        "imu_rate": "one entry per GPS fix, not per IMU sample",
     },
+    units=False,
 )
 
 
@@ -62,6 +63,7 @@ _OUTAGE_SIGMA = Exercise(
         "no_q": "the IMU noise keeps adding Q = W ΓΓᵀ at every step of the outage",
         "variance": "these are variances: the exercise asks for standard deviations",
     },
+    components=("σ_p", "σ_v", "σ_b"),
 )
 
 

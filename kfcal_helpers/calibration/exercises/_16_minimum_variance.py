@@ -35,6 +35,7 @@ _BATCH_TWO_FIXES = Exercise(
         "no_q_sum": "close, but a difference of method: Π_1 lacks the process noise that the IMU steps between the "
                     "two fixes add (each step adds Q, carried on by Φ); propagate Π_0 step by step",
     },
+    components=("δp", "δv", "b"),
 )
 
 

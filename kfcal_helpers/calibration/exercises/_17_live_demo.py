@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 from scipy import stats
 
-from ...exercises._core import (Exercise, Feedback, as_array, distinct_mistakes,
+from ...exercises._core import (BAND_NAMES, Exercise, Feedback, as_array, distinct_mistakes,
                                unanswered)
 from ...validation import (require_instance, require_int, require_positive,
                           require_probability)
@@ -50,6 +50,7 @@ _DEMO_FIRST_FIX_SIGMA = Exercise(
         "rounded_readout": "the readout rounds the slider's value to 2 decimals (3.16 for the stop 10 ** 0.5): "
                            "compute with the exact value (V[0,0] = 10 m² at that stop), not the rounded readout",
     },
+    components=("σ_p", "σ_v", "σ_b"),
 )
 
 
@@ -104,6 +105,7 @@ _DEMO_RATIO_BAND = Exercise(
         "mean_band": "1 ± 1.96/√N is the band of a MEAN of unit-variance numbers; s/σ is a ratio of "
                      "standard deviations: (N-1) s²/σ² is chi-square",
     },
+    components=BAND_NAMES,
 )
 
 
@@ -121,7 +123,7 @@ def check_demo_ratio_band(answer, *, n_runs: int = 200, alpha: float = 0.05) -> 
         (right**2, "variance"),
         (np.sqrt(stats.chi2.ppf([alpha, 1 - alpha], N - 1) / (N - 1)), "one_sided"),
     ]
-    for zq in (z, 1.96):  # the approximations, with the exact quantile or the usual 1.96
+    for zq in (z, 1.96, 2.0):  # the approximations, with the exact quantile, the usual 1.96 or the two-sigma rule
         pairs += [(1 + pm * zq / np.sqrt(2 * (N - 1)), "normal"), (1 + pm * zq / np.sqrt(N), "mean_band")]
     return ex.judge(answer, right, distinct_mistakes(pairs, right, _RTOL_BAND), rtol=_RTOL_BAND, atol=0.0)
 

@@ -18,10 +18,10 @@ from ..model import (
     wrap_measurement,
     wrap_state,
 )
-from ...exercises._slips import slip_hint
 from ...exercises._core import (Exercise, Feedback, as_array, call_student, distinct_mistakes, unanswered)
 from ...validation import require_positive, require_shape
-from ._shared import FN_ATOL, FN_RTOL, MEAS_X, NUM_ATOL, NUM_RTOL, STEP_DT, STEP_U, STEP_X, pi_for_minus_pi, wrap_answer
+from ._shared import (FN_ATOL, FN_RESULT, FN_RTOL, MEAS_NAMES, MEAS_X, NUM_ATOL, NUM_RTOL, STATE_NAMES, STEP_DT, STEP_U,
+                      STEP_X, pi_for_minus_pi, slip_before_wrapping, wrap_answer)
 
 
 def _arc_variant(x, u, dt, L, *, length="sinc", heading="mid", yaw_L=True, trig="ok"):
@@ -43,10 +43,6 @@ def _arc_variant(x, u, dt, L, *, length="sinc", heading="mid", yaw_L=True, trig=
         out[i], out[i + 1], out[i + 2] = x[i] + d * c, x[i + 1] + d * s, th + w * dt
     return wrap_state(out)
 
-
-#: the state's entries by name, for the hints that name the wrong ones (08.1)
-STATE_NAMES = ("the UGV's east position xi_g", "the UGV's north position eta_g", "the UGV's heading theta_g",
-               "the UAV's east position xi_a", "the UAV's north position eta_a", "the UAV's heading theta_a")
 
 STEP_MAP = Exercise(
     "08.1",
@@ -81,10 +77,9 @@ def check_step_map(answer, *, x=STEP_X, u=STEP_U, dt: float = STEP_DT, L: float 
     a = as_array(answer)
     if not unanswered(answer) and a is not None and a.size == N_STATES and not np.all(np.isfinite(a)):
         return E.mistake("nan")
-    if a is not None and a.size == N_STATES and np.all(np.isfinite(a)):  # headings in degrees: before any wrapping
-        deg = slip_hint(a, expected, rtol=NUM_RTOL, atol=NUM_ATOL, angles=E.angles, scales=False, reverse=False)
-        if deg is not None:
-            return E.feedback(False, deg)
+    deg = slip_before_wrapping(E, answer, expected)  # headings in degrees, x100...: before wrapping
+    if deg is not None:
+        return deg
     answer, unwrapped = wrap_answer(answer, expected, wrap_state)
     if unwrapped:
         return E.mistake("wrap")
@@ -137,6 +132,8 @@ MEASUREMENT = Exercise(
         "range_squared": "the range is the distance, not its square",
         "ugv_gps": "the GPS is on the UAV: the last two entries are the UAV's position",
     },
+    components=MEAS_NAMES,
+    angles=MEAS_ANGLES,
 )
 
 
@@ -149,6 +146,9 @@ def check_measurement(answer, *, x=MEAS_X) -> Feedback:
     x = require_shape("x", x, (N_STATES,))
     E = MEASUREMENT
     expected = measure(x)
+    deg = slip_before_wrapping(E, answer, expected)  # bearings in degrees, x100...: before wrapping
+    if deg is not None:
+        return deg
     answer, unwrapped = wrap_answer(answer, expected, wrap_measurement)
     if unwrapped:
         return E.mistake("wrap")
@@ -211,7 +211,8 @@ MEASURE_FUNCTION = Exercise(
         "degrees": "the bearings are in radians, not degrees",
         "ugv_gps": "the GPS is on the UAV: the last two entries are the UAV's position x[..., 3], x[..., 4]",
         "one_state": "your function works for one state only: index the last axis (x[..., 0], not x[0]) so that a stack (K, 6) gives (K, 5)",
-    },
+    },    components=MEAS_NAMES,
+    angles=MEAS_ANGLES,
 )
 
 
@@ -254,7 +255,8 @@ def check_measure_function(fn) -> Feedback:
     expected = each(measure)
     wrong = [(each(lambda x, m=m: _measure_fn_variant(x, m)), m) for m in
              ("atan2_order", "no_wrap", "wrap_2pi", "swapped_heading", "same_direction", "degrees", "ugv_gps")]
-    return E.judge(answer, expected, distinct_mistakes(wrong, expected, FN_RTOL), rtol=FN_RTOL, atol=FN_ATOL)
+    return E.judge(answer, expected, distinct_mistakes(wrong, expected, FN_RTOL), rtol=FN_RTOL, atol=FN_ATOL,
+                   what=FN_RESULT)
 
 
 #: the exercise records of this lesson, in notebook order

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -18,7 +19,8 @@ from ..model import (
 )
 from ...exercises._core import Exercise, Feedback, distinct_mistakes
 from ...validation import require_int, require_positive, require_shape
-from ._shared import FDT_DT, FDT_X, NUM_ATOL, OMEGA_DT, NUM_RTOL, RANK_ROWS, RANK_WINDOWS, ROW_X, U0_DEFAULT, finite_of_size
+from ...exercises._slips import matrix_names
+from ._shared import (FDT_DT, FDT_X, NUM_ATOL, OMEGA_DT, NUM_RTOL, RANK_ROWS, RANK_WINDOWS, ROW_X, U0_DEFAULT, finite_of_size)
 
 
 BEARING_ROW = Exercise(
@@ -33,6 +35,7 @@ BEARING_ROW = Exercise(
         "other_bearing": "that is the row of the other bearing (UAV to UGV): this one depends on theta_g, not theta_a",
         "range_row": "that is the range row (row 2 of C): this exercise asks for the first bearing",
     },
+    components=tuple(f"the derivative by {s}" for s in ("xi_g", "eta_g", "theta_g", "xi_a", "eta_a", "theta_a")),
 )
 
 
@@ -76,6 +79,7 @@ F_DT = Exercise(
         "sin_cos": "sin and cos are swapped: the east rate v cos(theta) differentiates to -v sin(theta)",
         "speeds": "each vehicle's rows use its own speed (v_g = 2 m/s for the UGV, v_a = 12 m/s for the UAV)",
     },
+    components=matrix_names("F", N_STATES),
 )
 
 
@@ -127,6 +131,8 @@ OBS_RANK = Exercise(
         "whole": "a rank is a whole number: count the independent rows of O (np.linalg.matrix_rank)",
         "reversed": "the first entry is the window of m = 1 step, the second the longer one",
     },
+    components=("the rank of the 1-step window", "the rank of the longer window"),
+    units=False,
 )
 
 
@@ -151,7 +157,9 @@ def check_obs_rank(answer, *, windows=RANK_WINDOWS, start: int = 0) -> Feedback:
     flat = finite_of_size(answer, len(windows))
     if flat is not None and not np.allclose(flat, np.round(flat)):
         return OBS_RANK.mistake("whole")
-    return OBS_RANK.judge(answer, expected, wrong)
+    E = OBS_RANK if len(windows) == 2 else replace(OBS_RANK, components=tuple(
+        f"the rank of the {m}-step window" for m in windows))
+    return E.judge(answer, expected, wrong)
 
 
 OMEGA_Q = Exercise(
@@ -163,6 +171,7 @@ OMEGA_Q = Exercise(
         "notebook_dt": "use the exercise's sample period, not the notebook's 0.1 s",
         "divided": "Omega = dT I multiplies: Omega Qtrue Omega^T = dT² Qtrue, not Qtrue / dT²",
     },
+    components=matrix_names("the entry ", N_STATES),
 )
 
 

@@ -21,7 +21,14 @@ from ..model import (
 )
 from ...exercises._core import (Exercise, Feedback, chi2_average_bounds)
 from ...validation import require_int, require_probability
-from ._shared import BOUNDS_RTOL, FN_ATOL, FN_RTOL, MC_RUNS, call_checked, pi_for_minus_pi
+from ._shared import BOUNDS_RTOL, FN_ATOL, FN_RESULT, FN_RTOL, MC_RUNS, MEAS_NAMES, call_checked, pi_for_minus_pi
+
+
+def mod_2pi(d):
+    """``d`` (..., 5) with its bearings wrapped to [0, 2 pi) (a common wrong answer)."""
+    d = np.array(d, dtype=float)
+    d[..., list(MEAS_ANGLES)] = np.mod(d[..., list(MEAS_ANGLES)], 2 * np.pi)
+    return d
 
 
 def normal_bounds(dim, n, alpha, z=None):
@@ -46,6 +53,7 @@ MC_BOUNDS = Exercise(
                    "and its quantiles are divided by N",
         "dim6": "the NIS has the dimension of the measurement, not of the state",
     },
+    components=("the NEES lower bound", "the NEES upper bound", "the NIS lower bound", "the NIS upper bound"),
 )
 
 
@@ -71,9 +79,9 @@ def check_mc_bounds(answer, *, n_runs: int = MC_RUNS, alpha: float = 0.05) -> Fe
              (np.array([chi2_average_bounds(N_STATES, N, alpha, dof=N_STATES, divide_by=1),
                         chi2_average_bounds(N_MEAS, N, alpha, dof=N_MEAS, divide_by=1)]), "one_run"),
              (np.array([normal_bounds(N_STATES, N, alpha), normal_bounds(N_MEAS, N, alpha)]), "normal")]
-    if abs(alpha - 0.05) < 1e-12:  # the same with the usual 1.96
-        pairs.append((np.array([normal_bounds(N_STATES, N, alpha, 1.96), normal_bounds(N_MEAS, N, alpha, 1.96)]),
-                      "normal"))
+    if abs(alpha - 0.05) < 1e-12:  # the same with the usual 1.96, or the two-sigma rule
+        for z in (1.96, 2.0):
+            pairs.append((np.array([normal_bounds(N_STATES, N, alpha, z), normal_bounds(N_MEAS, N, alpha, z)]), "normal"))
     pairs.append((np.array([expected[0], chi2_bounds(N_STATES, N, alpha)]), "dim6"))  # the NIS with the state's 6
     if N != 50:
         pairs.append((np.array([chi2_bounds(N_STATES, 50, alpha), chi2_bounds(N_MEAS, 50, alpha)]), "notebook_N"))
@@ -106,7 +114,10 @@ LKF_INNOVATION = Exercise(
         "wrap_all": "wrap only the bearings (components 0 and 2): range and GPS are not angles",
         "wrap_early": "wrap the whole innovation after subtracting H dx (it can cross +-pi again)",
         "no_H": "subtract the predicted measurement perturbation H dx",
+        "wrap_2pi": "the bearings are wrapped to [0, 2 pi): wrap them to (-pi, pi] instead",
     },
+    components=MEAS_NAMES,
+    angles=MEAS_ANGLES,
 )
 
 
@@ -136,8 +147,9 @@ def check_lkf_innovation(fn) -> Feedback:
         (each(lambda y, yn, H, dx: wrap_angle((y - yn) - H @ dx)), "wrap_all"),
         (each(wrap_early), "wrap_early"),
         (each(lambda y, yn, H, dx: wrap_measurement(y - yn)), "no_H"),
+        (each(lambda y, yn, H, dx: mod_2pi((y - yn) - H @ dx)), "wrap_2pi"),
     ]
-    return LKF_INNOVATION.judge(answer, expected, wrong, rtol=FN_RTOL, atol=FN_ATOL)
+    return LKF_INNOVATION.judge(answer, expected, wrong, rtol=FN_RTOL, atol=FN_ATOL, what=FN_RESULT)
 
 
 #: the exercise records of this lesson, in notebook order

@@ -20,7 +20,9 @@ from ..model import (
 )
 from ...exercises._core import (Exercise, Feedback)
 from ...validation import require_finite, require_shape
-from ._shared import EKF_T, EKF_X, FN_ATOL, FN_RTOL, NUM_ATOL, NUM_RTOL, call_checked, pi_for_minus_pi
+from ...exercises._slips import matrix_names
+from ._shared import (EKF_T, EKF_X, FN_ATOL, FN_RESULT, FN_RTOL, MEAS_NAMES, NUM_ATOL, NUM_RTOL, call_checked,
+                      pi_for_minus_pi)
 from ._09_linearization import euler_F
 
 
@@ -44,6 +46,8 @@ EKF_RESIDUAL = Exercise(
         "mod_2pi": "the wrapped difference must land in (-pi, pi], not in [0, 2 pi)",
         "shape": "right values, but filterpy passes column vectors (5, 1) and needs the same shape back",
     },
+    components=MEAS_NAMES,
+    angles=MEAS_ANGLES,
 )
 
 
@@ -76,7 +80,7 @@ def check_ekf_residual(fn) -> Feedback:
         (each(lambda a, b: measurement_residual(b, a)), "reversed"),
         (each(mod), "mod_2pi"),
     ]
-    fb = E.judge(answer, expected, wrong, rtol=FN_RTOL, atol=FN_ATOL)
+    fb = E.judge(answer, expected, wrong, rtol=FN_RTOL, atol=FN_ATOL, what=FN_RESULT)
     if fb.correct and any(o.shape != (N_MEAS, 1) for o in outs):
         return E.mistake("shape")
     return fb
@@ -108,6 +112,7 @@ EKF_F = Exercise(
         "transposed": "transposed: row i of F says how state i at k+1 depends on the states at k",
         "exact_map": "that is the Jacobian of the exact arc map: the filter uses the first-order F of the notebook",
     },
+    components=matrix_names("F", N_STATES),
 )
 
 

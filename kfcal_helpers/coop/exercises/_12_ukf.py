@@ -11,9 +11,10 @@ import numpy as np
 from ..model import (
     wrap_angle,
 )
-from ...exercises._core import (GENERIC_HINT, Exercise, Feedback)
+from ...exercises._core import (GENERIC_HINT, Exercise, Feedback, distinct_mistakes)
 from ...validation import require_finite, require_int, require_positive
-from ._shared import FN_ATOL, FN_RTOL, MERWE, NUM_ATOL, NUM_RTOL, call_checked, finite_of_size, pi_for_minus_pi
+from ._shared import (FN_ATOL, FN_RESULT, FN_RTOL, MERWE, NUM_ATOL, NUM_RTOL, call_checked, finite_of_size,
+                      pi_for_minus_pi)
 
 
 def _merwe(n, alpha, beta, kappa, *, lam=None, wc_extra=None, wi_den=None):
@@ -40,6 +41,7 @@ MERWE_WEIGHTS = Exercise(
         "no_minus_n": "lambda is missing its - n term",
         "sum": "your mean weights do not sum to 1 (Wm0 + 2n Wi): recheck lambda and the weights",
     },
+    components=("lambda", "Wm0", "Wc0", "Wi"),
 )
 #: the praise of 12.1 when the centre weight is negative
 NEGATIVE_WM0_PRAISE = "note the negative centre weight Wm0: the weights still sum to 1"
@@ -74,8 +76,9 @@ def check_merwe_weights(answer, *, n: int = MERWE["n"], alpha: float = MERWE["al
     flat = finite_of_size(answer, 4)
     with np.errstate(all="ignore"):  # 1e308 entries: an overflowing sum is simply not 1
         off_sum = flat is not None and not abs(flat[1] + 2 * n * flat[3] - 1.0) <= 1e-3
-    if not fb.correct and fb.answered and fb.message == GENERIC_HINT and off_sum:
-        return E.mistake("sum")
+    if not fb.correct and fb.answered and off_sum and fb.message not in E.hints.values() and \
+            replace(E, components=()).judge(answer, expected, wrong, rtol=NUM_RTOL, atol=NUM_ATOL).message == GENERIC_HINT:
+        return E.mistake("sum")   # before the hint naming the wrong entries: the sum says more
     return fb
 
 
@@ -99,7 +102,9 @@ CIRCULAR_MEAN = Exercise(
         "shifted": "shifting the angles into [0, 2 pi) only moves the problem from pi to 0",
         "arctan": "arctan of the ratio loses the quadrant (the cosine sum can be negative): use atan2",
         "size": "the circular mean of a set of angles is one angle: return a single float",
+        "wrap_2pi": "your mean lies in [0, 2 pi): the circular mean is an angle in (-pi, pi], as atan2 returns it",
     },
+    angles=True,
 )
 
 
@@ -123,8 +128,10 @@ def check_circular_mean(fn) -> Feedback:
         (each(lambda a, w: math.atan2(np.dot(w, np.cos(a)), np.dot(w, np.sin(a)))), "atan2_order"),
         (each(lambda a, w: float(wrap_angle(np.dot(w, np.mod(a, 2 * np.pi))))), "shifted"),
         (each(lambda a, w: math.atan(np.dot(w, np.sin(a)) / np.dot(w, np.cos(a)))), "arctan"),
+        (each(lambda a, w: np.mod(math.atan2(np.dot(w, np.sin(a)), np.dot(w, np.cos(a))), 2 * np.pi)), "wrap_2pi"),
     ]
-    return E.judge(answer, expected, wrong, rtol=FN_RTOL, atol=FN_ATOL)
+    return E.judge(answer, expected, distinct_mistakes(wrong, expected, FN_RTOL), rtol=FN_RTOL, atol=FN_ATOL,
+                   what=FN_RESULT)
 
 
 #: the exercise records of this lesson, in notebook order

@@ -13,7 +13,7 @@ from ..model import (
     N_MEAS,
     N_STATES,
 )
-from ...exercises._core import (Exercise, Feedback, chi2_average_bounds)
+from ...exercises._core import (BAND_NAMES, Exercise, Feedback, chi2_average_bounds)
 from ...validation import require_int, require_probability
 from ._shared import BOUNDS_RTOL, LOG_ALPHA, LOG_SAMPLES, SPARSE_EVERY, SPARSE_SAMPLES
 from ._10_lkf import normal_bounds
@@ -39,6 +39,7 @@ LOG_NIS_BOUNDS = Exercise(
         "dim6": "the NIS has the dimension of the measurement, not of the state",
         "normal": "close, but that is the normal approximation: use the chi-square quantiles",
     },
+    components=BAND_NAMES,
 )
 
 
@@ -72,6 +73,7 @@ SPARSE_NIS_BOUNDS = Exercise(
         "dof_K": "n_upd steps of a 5-dimensional NIS give 5 n_upd degrees of freedom, not n_upd",
         "dim6": "the NIS has the dimension of the measurement, not of the state",
     },
+    components=BAND_NAMES,
 )
 
 

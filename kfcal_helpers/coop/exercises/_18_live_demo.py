@@ -19,7 +19,7 @@ from ..model import (
     observability_matrix,
     jacobian_step,
 )
-from ...exercises._core import (Exercise, Feedback, as_array, distinct_mistakes)
+from ...exercises._core import (BAND_NAMES, Exercise, Feedback, as_array, distinct_mistakes)
 from ...validation import require_instance, require_int, require_probability
 
 
@@ -40,6 +40,7 @@ SUBSET_NIS_BOUNDS = Exercise(
         "one_sided": "a two-sided test at α = 0.05 puts α/2 = 0.025 in each tail",
         "normal": "close: that is the normal approximation m ± 1.96 √(2m/K); use the chi-square quantiles (scipy.stats.chi2.ppf or chi2_bounds)",
     },
+    components=BAND_NAMES,
 )
 
 
@@ -63,6 +64,7 @@ def check_subset_nis_bounds(answer, *, n_meas: int = 3, n_samples: int = 1001, a
         (stats.chi2.ppf([alpha, 1 - alpha], m * K) / K, "one_sided"),
         (m + np.array([-1.0, 1.0]) * z * np.sqrt(2 * m / K), "normal"),
         (m + np.array([-1.0, 1.0]) * round(z, 2) * np.sqrt(2 * m / K), "normal"),  # with z rounded (1.96)
+        (m + np.array([-1.0, 1.0]) * 2.0 * np.sqrt(2 * m / K), "normal"),  # the two-sigma rule
     ]
     E = replace(SUBSET_NIS_BOUNDS, praise=SUBSET_NIS_BOUNDS.praise.format(m=m, K=K))
     return E.judge(answer, right, distinct_mistakes(pairs, right, _RTOL_NIS), rtol=_RTOL_NIS, atol=0.0)
@@ -116,6 +118,8 @@ LOST_DIRECTIONS = Exercise(
         "bearings_scale_lost": "O stacks 10 samples of a moving scene, not one snapshot: what the bearings cannot see at one sample is not what they cannot see over the window; compute the rank of the stacked O",
         "no_bearings_lost": "for the subset without the bearings, count with the stacked O over all 10 samples, not from one sample's geometry: build O with rows (1, 3, 4) and compute 6 - rank",
     },
+    components=("the count without the bearings", "the count without the GPS north", "the count with the bearings only"),
+    units=False,
 )
 
 

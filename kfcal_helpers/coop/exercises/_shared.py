@@ -11,7 +11,8 @@ from ..model import (
     CoopParams,
 )
 from ...exercises._core import (Exercise, as_array, call_student, matches,
-                               too_large)
+                               too_large, unanswered)
+from ...exercises._slips import slip_hint
 
 
 
@@ -48,6 +49,27 @@ LOG_ALPHA = 0.01
 #: 13.2: the 100 s log (1001 samples) with every 10th measurement kept
 SPARSE_EVERY = 10
 SPARSE_SAMPLES = 1001
+
+#: the entries of a state and of a measurement by name, for the hints that name the one or two wrong ones
+STATE_NAMES = ("the UGV's east position xi_g", "the UGV's north position eta_g", "the UGV's heading theta_g",
+               "the UAV's east position xi_a", "the UAV's north position eta_a", "the UAV's heading theta_a")
+MEAS_NAMES = ("the bearing UGV->UAV", "the range", "the bearing UAV->UGV", "the UAV's GPS east xi_a",
+              "the UAV's GPS north eta_a")
+#: what a slip's hint calls the outputs of a student's function (stacked over the test cases)
+FN_RESULT = "your function's result"
+
+
+def slip_before_wrapping(exercise: Exercise, answer, expected):
+    """The Feedback of a slip (:func:`~kfcal_helpers.exercises.slip_hint`: units, degrees for the
+    exercise's ``angles``, reversed) of an answer whose angles the check wraps before judging it: the
+    wrapping would hide the slip (an angle in degrees or times 100 wraps to another angle).  None when
+    the answer is no slip of ``expected``."""
+    a = finite_of_size(answer, np.size(expected)) if not unanswered(answer) else None
+    if a is None:
+        return None
+    hint = slip_hint(a, expected, rtol=NUM_RTOL, atol=NUM_ATOL, angles=exercise.angles)
+    return None if hint is None else exercise.feedback(False, hint)
+
 
 NUM_RTOL, NUM_ATOL = 1e-7, 1e-9  # numeric answers: the computed value (no rounding), any float-exact formula
 FN_RTOL, FN_ATOL = 1e-7, 1e-9  # outputs of a student's function (same float formula)
