@@ -439,3 +439,23 @@ def test_rendering_twice_gives_the_same_notebooks_and_course_ids(copy_01):
     assert len({c.id for c in a.cells}) == len(a.cells)
     nbformat.validate(a)
     assert sync(folder, log=lambda line: None) == []          # nothing changed: nothing written
+
+
+def _lesson_code(name):
+    """The lesson's code cells (no solution or answer cells), joined in order."""
+    nb = read_source(NOTEBOOKS / "source" / name)
+    return "\n".join(c.source for c in nb.cells if c.cell_type == "code" and "kfcal" not in c.metadata)
+
+
+def test_calibration_lessons_05_06_build_their_filter_before_the_package_runs_it():
+    """05 computes both first-update conventions with its own loop before covariance_sequence is called; 06 runs
+    its own vectorised filter over the realization ladder before batch_filter, covariance_sequence or the package's
+    Monte Carlo is called, and shows them equal (issue 32)."""
+    code05 = _lesson_code("05_kalman_filter_filterpy.md")
+    assert code05.index("def covariances(") < code05.index("covariance_sequence(")
+    code06 = _lesson_code("06_monte_carlo_validation.md")
+    own = code06.index("def filter_ensemble(")
+    ladder = code06.index("LADDER = (10, 40, 160, 640)")
+    for package_call in ("batch_filter(", "covariance_sequence(", "run_monte_carlo(", "chunk_generators("):
+        assert own < ladder < code06.index(package_call), package_call
+    assert code06.index("np.allclose(theirs, ours") < code06.index("run_monte_carlo(")

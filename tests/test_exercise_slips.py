@@ -180,6 +180,15 @@ def _bearings(out, f):
     return out
 
 
+def band_loops(e, alpha):
+    """The ensemble mean error and its Student-t half-width, entry by entry."""
+    n = len(e)
+    flat = e.reshape(n, -1)
+    mean = np.array([sum(flat[:, j]) / n for j in range(flat.shape[1])])
+    sd = np.array([math.sqrt(sum((flat[:, j] - mean[j]) ** 2) / (n - 1)) for j in range(flat.shape[1])])
+    return mean.reshape(e.shape[1:]), (stats.t.ppf(1 - alpha / 2, n - 1) * sd / math.sqrt(n)).reshape(e.shape[1:])
+
+
 def _function_rows():
     euler, reckon, predict = cal.euler_loop, calf.reckon_loops, cal.predict_loop
     deg = lambda b: np.degrees(b)                                    # noqa: E731
@@ -198,6 +207,8 @@ def _function_rows():
          "your function's M is 1000 times the right one"),
         ("05.1", ENTRY, lambda x, M, Phi, Q, n: (predict(x, M, Phi, Q, n)[0] * [1, 1, 1.5], predict(x, M, Phi, Q, n)[1]),
          "only x̄[2] (b) is off, the rest is right"),
+        ("06.4", UNITS, lambda e, alpha: tuple(v * 1000 for v in band_loops(e, alpha)),
+         "your function's e_bar is 1000 times the right one"),
         ("07.2", UNITS, lambda a, v0, dt: trapezoid_loop(a, v0, dt) / 1000, "your function's v is 0.001 times"),
         ("07.2", REVERSED, lambda a, v0, dt: trapezoid_loop(a, v0, dt)[::-1],
          "the entries of your function's v are in reverse order"),
@@ -228,7 +239,8 @@ def _function_rows():
 NUMERIC_ROWS = _numeric_rows()
 FUNCTION_ROWS = _function_rows()
 FUNCTION_CHECK = {"01.3": cx.check_euler_truth, "02.4": cx.check_dead_reckoning, "02.5": cx.check_imu_output,
-                  "03.4": cx.check_gps_measurement, "05.1": cx.check_predict_only, "07.2": cx.check_trapezoid_velocity,
+                  "03.4": cx.check_gps_measurement, "05.1": cx.check_predict_only,
+                  "06.4": cx.check_mean_error_band, "07.2": cx.check_trapezoid_velocity,
                   "08.3": kx.check_measure_function, "10.2": kx.check_lkf_innovation, "11.1": kx.check_ekf_residual,
                   "12.2": kx.check_circular_mean}
 
@@ -258,7 +270,7 @@ def test_every_function_exercise_has_a_slip_row():
 
 def test_the_right_functions_of_the_rows_are_right():
     right = {"01.3": cal.euler_loop, "02.4": calf.reckon_loops, "02.5": calf.imu_loops, "03.4": calf.gps_loops,
-             "05.1": cal.predict_loop, "07.2": trapezoid_loop, "08.3": coopf.h_loops, "10.2": coop.lkf_right,
+             "05.1": cal.predict_loop, "06.4": band_loops, "07.2": trapezoid_loop, "08.3": coopf.h_loops, "10.2": coop.lkf_right,
              "11.1": residual, "12.2": coop.circ_right}
     for exercise, check in FUNCTION_CHECK.items():
         assert check(right[exercise]).correct, exercise

@@ -312,7 +312,7 @@ def test_unknown_wrong_answer_gets_the_generic_hint(exercise):
     assert not fb.correct and fb.message == GENERIC[exercise]
 
 
-@pytest.mark.parametrize("exercise", NUMERIC + ["01.3", "05.1", "07.2", "07.3"])
+@pytest.mark.parametrize("exercise", NUMERIC + ["01.3", "05.1", "06.4", "07.2", "07.3"])
 def test_placeholder_is_not_answered_yet(exercise):
     check = CASES[exercise][0] if exercise in CASES else FUNCTION_CHECKS[exercise]
     for placeholder in (None, ...):
@@ -349,10 +349,10 @@ def test_transposed_gain_gets_the_shape_hint():
 
 
 # --------------------------------------------------------------------------------------------
-# function exercises: 01.3, 05.1, 07.2; the set exercise 07.3
+# function exercises: 01.3, 05.1, 06.4, 07.2; the set exercise 07.3
 # --------------------------------------------------------------------------------------------
-FUNCTION_CHECKS = {"01.3": ex.check_euler_truth, "05.1": ex.check_predict_only, "07.2": ex.check_trapezoid_velocity,
-                   "07.3": ex.check_mismatch_failures}
+FUNCTION_CHECKS = {"01.3": ex.check_euler_truth, "05.1": ex.check_predict_only, "06.4": ex.check_mean_error_band,
+                   "07.2": ex.check_trapezoid_velocity, "07.3": ex.check_mismatch_failures}
 
 
 def test_euler_truth_check():
@@ -400,6 +400,55 @@ def test_predict_only_check():
     assert fb.message.startswith("x̄ is right, M is not")
 
 
+def mean_error_loops(e, alpha, rule="ok"):
+    """The mean error and its band by plain loops over every entry (no numpy reductions over the ensemble);
+    the quantile from scipy's Student-t interval (or the rule's wrong one)."""
+    e = np.asarray(e, dtype=float)
+    n = e.shape[0]
+    e_bar, half = np.zeros(e.shape[1:]), np.zeros(e.shape[1:])
+    for idx in np.ndindex(*e.shape[1:]):
+        col = [e[(l, *idx)] for l in range(n)]
+        mean = sum(col) / n
+        ss = sum((x - mean) ** 2 for x in col)
+        sd = (ss / (n if rule == "ddof0" else n - 1)) ** 0.5
+        q = {"z": stats.norm.interval(1 - alpha)[1], "dof_n": stats.t.interval(1 - alpha, n)[1],
+             "one_sided": stats.t.interval(1 - 2 * alpha, n - 1)[1], "two": 2.0,
+             "fixed_alpha": stats.t.interval(0.95, n - 1)[1]}.get(rule, stats.t.interval(1 - alpha, n - 1)[1])
+        se = {"no_sqrt_n": sd, "over_n": sd / n}.get(rule, sd / n ** 0.5)
+        e_bar[idx], half[idx] = mean, q * se
+    return e_bar, half
+
+
+def test_mean_error_band_check():
+    check = ex.check_mean_error_band
+    assert check(mean_error_loops).correct
+    assert check(lambda e, alpha: [list(x) for x in mean_error_loops(e, alpha)]).correct   # lists are fine too
+    wrong = ("z", "dof_n", "ddof0", "no_sqrt_n", "over_n", "one_sided", "two", "fixed_alpha")
+    assert set(wrong) == set(HINTS["06.4"]) - {"tuple", "axis"}
+    for rule in wrong:
+        fb = check(lambda e, alpha, rule=rule: mean_error_loops(e, alpha, rule))
+        assert not fb.correct and fb.message == HINTS["06.4"][rule], (rule, str(fb))
+    fb = check(lambda e, alpha: (e.mean(axis=1), mean_error_loops(e, alpha)[1]))
+    assert not fb.correct and fb.message == HINTS["06.4"]["axis"], str(fb)
+    for out in (np.zeros(15), (np.zeros((5, 3)),), "e_bar", (np.zeros((5, 3)), np.zeros((5, 3)), np.zeros((5, 3)))):
+        fb = check(lambda e, alpha, out=out: out)
+        assert not fb.correct and fb.message == HINTS["06.4"]["tuple"], str(fb)
+    fb = check(lambda e, alpha: (mean_error_loops(e, alpha)[0], np.ones((5, 3))))
+    assert fb.message.startswith("e_bar is right, the half-width is not")
+    fb = check(lambda e, alpha: (mean_error_loops(e, alpha)[0] + 1.0, mean_error_loops(e, alpha)[1]))
+    assert fb.message.startswith("e_bar is not the ensemble mean")
+    fb = check(lambda e, alpha: (e.sort(axis=0), mean_error_loops(e, alpha))[1])   # sorts its input in place
+    assert not fb.correct and "changed" in fb.message, str(fb)
+
+
+def test_06_4_numbers_have_one_home_that_the_source_notebook_agrees_with():
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "notebooks" / "source" / "06_monte_carlo_validation.md").read_text(encoding="utf-8")
+    n, n_fix, n_comp, alpha = ex.MEAN_ERROR_TEST
+    assert n_comp == 3 and f"ensemble of {n} realizations of {n_fix} fixes with `alpha = {alpha:g}`" in text
+
+
 def test_trapezoid_check():
     check = ex.check_trapezoid_velocity
 
@@ -421,7 +470,7 @@ def test_trapezoid_check():
     assert not fb.correct and "got str" in fb.message
 
 
-@pytest.mark.parametrize("exercise", ["01.3", "05.1", "07.2"])
+@pytest.mark.parametrize("exercise", ["01.3", "05.1", "06.4", "07.2"])
 def test_function_checks_survive_half_written_functions(exercise):
     check = FUNCTION_CHECKS[exercise]
 
@@ -498,7 +547,7 @@ def test_mismatch_failures_check():
 # --------------------------------------------------------------------------------------------
 def test_every_check_is_exported_and_has_one_record():
     checks = [n for n in ex.__all__ if n.startswith("check_")]
-    assert len(checks) == 33 and len(set(checks)) == 33
+    assert len(checks) == 34 and len(set(checks)) == 34
     for name in checks:
         assert callable(getattr(ex, name)), name
     assert all(isinstance(e, Exercise) and e.id == i for i, e in EXERCISES.items())

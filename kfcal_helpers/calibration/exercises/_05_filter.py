@@ -133,7 +133,7 @@ _SECOND_GAIN = Exercise(
     hints={
         "once_per_fix": "one predict call per fix is one IMU step: between two fixes the filter predicts once per IMU "
                         "sample, with the 200 Hz Φ and Q",
-        "fix_phi_one_q": "the fix-to-fix Φ^k carries P over the interval, but each of its k IMU steps adds its own "
+        "fix_phi_one_q": "the fix-to-fix Φ⁴⁰ carries P over the interval, but each of its 40 IMU steps adds its own "
                          "process noise Q (carried on by the later steps), not one Q for the whole interval",
         "one_short": "count the predictions from one fix to the next: every IMU step, the one onto the fix included",
         "one_long": "one prediction too many: 40 IMU steps separate two fixes at 200 Hz / 5 Hz",

@@ -1,4 +1,4 @@
-"""Exercise checks of notebook 06 (Monte Carlo validation): 06.1-06.3."""
+"""Exercise checks of notebook 06 (Monte Carlo validation): 06.1-06.4."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from scipy import stats
 from ...consistency import chi2_bounds
 from ...exercises._core import (BAND_NAMES, Exercise, Feedback, chi2_average_bounds)
 from ...validation import (require_finite, require_int, require_probability)
-from ._shared import numeric
+from ._shared import as_pair, call_once, close, numeric
 
 
 _MC_NIS_BOUNDS = Exercise(
@@ -120,5 +120,76 @@ def check_simultaneous_nees_band(answer, *, n_runs: int = 1000, n_fixes: int = 1
     return numeric(_SIMULTANEOUS_NEES_BAND, answer, right, wrong)
 
 
+#: the test ensemble of exercise 06.4: realizations, fixes, components, and the significance it is called with
+MEAN_ERROR_TEST = (12, 5, 3, 0.1)
+
+
+def _mean_error_test():
+    """The errors e (12, 5, 3) the check passes (m, m/s, m/s^2 per component; the same on every call)."""
+    n, n_fix, n_comp, _ = MEAN_ERROR_TEST
+    rng = np.random.default_rng(604)
+    return rng.normal(0.0, [1.0, 0.1, 0.01], size=(n, n_fix, n_comp)) + np.array([0.3, -0.02, 0.001])
+
+
+_MEAN_ERROR_BAND = Exercise(
+    "06.4",
+    praise="your mean-error check: the ensemble mean and its Student-t band, for any ensemble and any α",
+    hint="the mean over the realizations (axis 0) and the half-width t_{N-1}(1 - α/2) · s / √N, s the ensemble "
+         "standard deviation with ddof=1",
+    hints={
+        "tuple": "return a tuple (e_bar, half): two arrays of the shape of one realization's errors, (n_fixes, 3)",
+        "axis": "average over the realizations, the first axis of e (axis=0): e_bar has the shape of one "
+                "realization's errors",
+        "z": "with the ensemble's own standard deviation the standardized mean is Student-t with N - 1 degrees of "
+             "freedom, not normal: use scipy.stats.t",
+        "dof_n": "the ensemble standard deviation uses up one degree of freedom: Student-t with N - 1",
+        "ddof0": "the sample standard deviation divides by N - 1 (np.std(..., ddof=1))",
+        "no_sqrt_n": "that is the band of one realization's error: the mean of N has standard error s/√N",
+        "over_n": "the standard error of a mean of N is s/√N, not s/N",
+        "one_sided": "a two-sided band puts α/2 in each tail: the 1 - α/2 quantile",
+        "two": "2 is not the quantile: use the Student-t quantile at 1 - α/2 with N - 1 degrees of freedom",
+        "fixed_alpha": "use the significance the function is given (alpha), not 0.05",
+    },
+)
+
+
+def check_mean_error_band(func) -> Feedback:
+    """Exercise 06.4: ``func(e, alpha) -> (e_bar, half)``, the ensemble mean error and the half-width of its
+    two-sided ``1 - alpha`` Student-t band, both of shape ``e.shape[1:]``, for errors ``e`` of shape
+    (N, n_fixes, 3). Called on a fixed test ensemble (``MEAN_ERROR_TEST``: N = 12, 5 fixes, alpha = 0.1)."""
+    ex = _MEAN_ERROR_BAND
+    e = _mean_error_test()
+    n, alpha = len(e), MEAN_ERROR_TEST[3]
+    out, fb = call_once(ex, func, "mean_error_band(e, alpha)", (e.copy(), alpha))
+    if fb is not None:
+        return fb
+    pair = as_pair(out)
+    if pair is None:
+        return ex.mistake("tuple")
+    e_bar, half = pair
+    right_bar = e.mean(axis=0)
+    if e_bar.size != right_bar.size:
+        return ex.mistake("axis")
+    if half.size != right_bar.size:
+        return ex.mistake("tuple")
+    s, s0 = e.std(axis=0, ddof=1), e.std(axis=0)
+    t = stats.t.ppf(1 - alpha / 2, n - 1)
+    right_half = t * s / np.sqrt(n)
+    if not close(e_bar, right_bar):
+        slip = ex.output_slip([e_bar, half], [right_bar, right_half], ("e_bar", "half"))
+        return slip if slip is not None else ex.feedback(False, "e_bar is not the ensemble mean: " + ex.hint)
+    if close(half, right_half):
+        return ex.feedback(True)
+    wrong = [("z", stats.norm.ppf(1 - alpha / 2) * s / np.sqrt(n)), ("dof_n", stats.t.ppf(1 - alpha / 2, n) * s / np.sqrt(n)),
+             ("ddof0", t * s0 / np.sqrt(n)), ("no_sqrt_n", t * s), ("over_n", t * s / n),
+             ("one_sided", stats.t.ppf(1 - alpha, n - 1) * s / np.sqrt(n)), ("two", 2 * s / np.sqrt(n)),
+             ("fixed_alpha", stats.t.ppf(0.975, n - 1) * s / np.sqrt(n))]
+    for key, value in wrong:
+        if close(half, value):
+            return ex.mistake(key)
+    slip = ex.output_slip([e_bar, half], [right_bar, right_half], ("e_bar", "half"))
+    return slip if slip is not None else ex.feedback(False, "e_bar is right, the half-width is not: " + ex.hint)
+
+
 #: the exercise records of this lesson, in notebook order
-RECORDS = (_MC_NIS_BOUNDS, _FISHER_BAND, _SIMULTANEOUS_NEES_BAND)
+RECORDS = (_MC_NIS_BOUNDS, _FISHER_BAND, _SIMULTANEOUS_NEES_BAND, _MEAN_ERROR_BAND)
