@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from ..output import dumps_json
+from ..output import print_summary
 from ..validation import MAX_SEED, MIN_ALPHA, cli_float, cli_int, require_int, require_positive
 from .data import load_log
 from .filters import FILTERS, TUNED_Q_SCALE, fit_q_scale, log_summary, run_filter
@@ -141,16 +141,5 @@ def run(args) -> int:
             out["fit_scales_inside_nis_bounds"] = ([float(inside.min()), float(inside.max())] if inside.size
                                                    else [])
     out["seconds"] = time.perf_counter() - t0
-    if args.json:
-        print(dumps_json(out))
-    else:
-        width = max(len(k) for k in out)
-        for key, value in out.items():
-            if isinstance(value, bool):
-                value = "yes" if value else "no"
-            elif isinstance(value, float):
-                value = f"{value:.4g}"
-            elif isinstance(value, list):
-                value = "[" + ", ".join(f"{v:.4g}" for v in value) + "]"
-            print(f"{key:<{width}}  {value}")
+    print_summary(out, args.json)
     return 0
