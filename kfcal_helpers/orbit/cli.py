@@ -24,7 +24,7 @@ from scipy import stats
 from .. import montecarlo as core
 from ..consistency import format_checks
 from ..output import print_summary
-from ..validation import MAX_SEED, MIN_ALPHA, cli_float, cli_int, require_int
+from ..validation import MAX_SEED, MIN_ALPHA, check_every_option, cli_float, cli_int, require_int
 from .data import load_log, log_params
 from .filters import FILTERS, FilterSetup, run_filter
 from .montecarlo import OrbitExperiment, truth_model_test
@@ -58,13 +58,6 @@ def add_parser(subparsers):
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(run=run)
     return p
-
-
-def _check_every(every: int, n_steps: int, what: str) -> None:
-    """``--every M`` keeps steps 0, M, 2M, ...: it must keep one after step 0."""
-    if every > n_steps - 1:
-        raise ValueError(f"--every must be at most {n_steps - 1} ({what} {n_steps} steps; every M-th step "
-                         f"must keep a measurement after step 0), got {every}")
 
 
 def every_log(log: OrbitLog, every: int) -> OrbitLog:
@@ -111,7 +104,7 @@ def _monte_carlo(args, every: int) -> tuple[dict, str]:
         raise ValueError("--runs: a truth-model Monte Carlo simulates its own data; do not give --log with it")
     runs = require_int("--runs", args.runs, minimum=2)
     params = OrbitParams()
-    _check_every(every, params.n_samples, "the truth model has")
+    check_every_option(every, params.n_samples, "the truth model has")
     # refused before any work (one line, exit 2) when it would exceed 500 MB or an hour
     estimate_truth_model_test(params, runs, filter=args.filter, every=every, runs_name="--runs",
                               extra_bytes=OUTPUT_BYTES)
@@ -131,7 +124,7 @@ def _on_log(args, every: int) -> dict:
     else:
         log = simulate(seed=DEFAULT_LOG_SEED if args.seed is None else args.seed).log()
     if every > 1:
-        _check_every(every, len(log.ydata), "the log has")
+        check_every_option(every, len(log.ydata), "the log has")
         log = every_log(log, every)
         if not log.dof.any():
             raise ValueError(f"--every {every} keeps no measurement of this log (the steps it keeps have no station)")

@@ -58,9 +58,9 @@ def figure_data() -> OrbitCase:
 
 
 def _size():
-    import matplotlib as mpl
+    from ..style import figure_size
 
-    return tuple(mpl.rcParams["figure.figsize"])
+    return figure_size()
 
 
 def _station_colours(n: int):
