@@ -2,18 +2,14 @@
 with one line and exit 2), and bounds the peak resident memory a real process reaches (the slow tier)."""
 
 import os
-import subprocess
-import sys
 
 import pytest
+from child_memory import command_peak
 
 from kfcal_helpers.cli import main
 from kfcal_helpers.montecarlo import MEMORY_LIMIT
 from kfcal_helpers.orbit import OrbitParams
 from kfcal_helpers.orbit.cli import OUTPUT_BYTES, estimate_truth_model_test
-
-HWM = ("[int(line.split()[1]) * 1024 for line in open('/proc/self/status') "
-       "if line.startswith('VmHWM')][0]")
 
 
 def _largest_accepted(filter, workers=2):
@@ -57,14 +53,6 @@ def test_estimate_bounds_the_peak_rss_of_a_child_process(filter, runs):
     loose either (at least half of it is used)."""
     runs = _largest_accepted(filter) if runs is None else runs
     est = estimate_truth_model_test(OrbitParams(), runs, filter=filter, workers=2, extra_bytes=OUTPUT_BYTES)
-    code = ("import sys; from kfcal_helpers.cli import main; "
-            f"code = main(['orbit', '--runs', '{runs}', '--filter', '{filter}', '--json']); "
-            f"print({HWM}, file=sys.stderr); sys.exit(code)")
-    env = {"KFCAL_QUIET": "1", "KFCAL_WORKERS": "2", "PATH": ""}
-    if os.environ.get("PYTHONPATH"):
-        env["PYTHONPATH"] = os.environ["PYTHONPATH"]
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=900, env=env)
-    assert r.returncode == 0, r.stderr
-    peak = int(r.stderr.split()[-1])
-    assert f'"n_runs": {runs}' in r.stdout
+    out, peak = command_peak(["orbit", "--runs", str(runs), "--filter", filter, "--json"], timeout=900)
+    assert f'"n_runs": {runs}' in out
     assert 0.5 * est.peak_bytes < peak <= est.peak_bytes <= MEMORY_LIMIT, (peak / 1e6, est.peak_bytes / 1e6)
