@@ -10,7 +10,7 @@ from scipy.io import savemat
 
 from kfcal_helpers.orbit import OrbitParams, simulate
 from kfcal_helpers.orbit.data import (COURSE_LOG_VARIABLE, MAX_FILE_BYTES, course_log, course_log_path, load_log,
-                                      log_params, write_log_csv, write_log_mat)
+                                      log_params, write_generated_log, write_log_csv, write_log_mat)
 
 import log_files as lf
 
@@ -65,6 +65,23 @@ def test_csv_round_trip_and_row_order(small_log, tmp_path):
     lines = (folder / "ydata.csv").read_text().splitlines()
     (folder / "ydata.csv").write_text("\n".join(lines[:1] + lines[:0:-1]) + "\n")  # rows reversed
     assert np.array_equal(load_log(folder).y, small_log.y, equal_nan=True)
+
+
+def test_column_forms_of_tvec_and_ydata(small_log, tmp_path):
+    """MATLAB may hold tvec as K x 1 and ydata as a K x 1 cell array: both are read."""
+    f = _course_mat(small_log, tmp_path / "col.mat", tvec=small_log.t[:, None], ydata=_cells(small_log.ydata).T)
+    assert np.array_equal(load_log(f).y, small_log.y, equal_nan=True)
+
+
+def test_written_generated_log_is_the_fallback(monkeypatch, tmp_path, small_log):
+    for name in ("gen.mat", "gen_csv"):
+        path = write_generated_log(tmp_path / name, seed=3, params=SMALL)
+        assert np.array_equal(load_log(path).y, small_log.y, equal_nan=True)
+    monkeypatch.setenv(COURSE_LOG_VARIABLE, str(tmp_path / "gen.mat"))
+    log, found, _ = course_log()
+    assert found and np.array_equal(log.y, small_log.y, equal_nan=True)
+    with pytest.raises(ValueError, match="seed"):
+        write_generated_log(tmp_path / "x.mat", seed=-1)
 
 
 def test_spreadsheet_csv_bom_crlf(small_log, tmp_path):

@@ -30,7 +30,8 @@ from .. import registry
 from . import cli, figures, mistakes
 
 from .batch import BatchResult, run_batch
-from .data import COURSE_LOG_VARIABLE, course_log, course_log_path, load_log, log_params, write_log_csv, write_log_mat
+from .data import (COURSE_LOG_VARIABLE, course_log, course_log_path, load_log, log_params, write_generated_log, write_log_csv,
+                   write_log_mat)
 from .filters import FILTERS, FilterResult, FilterSetup, OrbitEKF, run, run_ekf, run_filter, run_lkf, run_ukf
 from .model import (
     PHI,
@@ -71,7 +72,7 @@ __all__ = [
     "DEFAULT_LOG_SEED", "OrbitLog", "Simulation", "from_columns", "integrate", "simulate", "simulate_measurements",
     "simulate_truth", "to_columns",
     "COURSE_LOG_VARIABLE", "course_log", "course_log_path", "load_log", "log_params", "write_log_csv", "write_log_mat",
-    "PROBLEM",
+    "write_generated_log", "PROBLEM",
 ]
 
 #: the orbit-determination problem as the command line, ``figures`` and the mistakes table see it

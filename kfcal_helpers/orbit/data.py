@@ -53,7 +53,7 @@ from .simulation import DEFAULT_LOG_SEED, OrbitLog, simulate
 
 __all__ = ["LOG_VARIABLES", "CSV_COLUMNS", "MAX_COLUMNS", "MAX_FILE_BYTES", "MAX_MEASUREMENT", "MAX_STEPS",
            "MAX_VARIANCE", "COURSE_LOG_VARIABLE", "load_log", "write_log_csv", "write_log_mat", "log_params", "course_log_path",
-           "course_log"]
+           "course_log", "write_generated_log"]
 
 #: the variables of a log (the course's ``.mat`` names; the CSV folder's file stems)
 LOG_VARIABLES = ("tvec", "ydata", "Qtrue", "Rtrue")
@@ -365,3 +365,14 @@ def course_log(params: OrbitParams | None = None, seed: int = DEFAULT_LOG_SEED) 
     return log, False, (f"no course log ({COURSE_LOG_VARIABLE} {why}): using a generated log "
                         f"(seed {seed}, same noise model) instead")
 
+
+
+@checked(params=optional(partial(require_instance, cls=OrbitParams)), seed=partial(require_seed, allow_none=False))
+def write_generated_log(path, seed: int = DEFAULT_LOG_SEED, params: OrbitParams | None = None) -> Path:
+    """Write the seeded generated log (``simulate(params, seed=seed).log()``, the stand-in :func:`course_log`
+    uses) in the course's format: a ``.mat`` file when ``path`` ends in ``.mat``, else a CSV folder.
+    Returns the path; ValueError naming ``file`` or ``folder`` if it cannot be written."""
+    log = simulate(params, seed=seed).log()
+    if isinstance(path, (str, Path)) and not isinstance(path, bool) and Path(path).suffix.lower() == ".mat":
+        return write_log_mat(log, path)
+    return write_log_csv(log, path)
