@@ -22,6 +22,10 @@ def rows(mistakes_table):
 
 
 def test_problem_entry():
+    from kfcal_helpers import problems
+
+    assert problems.problem("orbit") is PROBLEM is problems.PROBLEMS[-1] is problems.ORBIT
+    assert [f.name for f in PROBLEM.figures] == ["orbit_geometry", "orbit_measurements", "orbit_nees_nis"]
     assert PROBLEM.name == "orbit" and PROBLEM.mistakes is MISTAKES and PROBLEM.mistake_row is mistake_row
     assert list(MISTAKES) == list(ORBIT_CAUGHT_BY) and N_RUNS == 50 and SEED == 11
 
