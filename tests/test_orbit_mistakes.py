@@ -104,3 +104,19 @@ def test_cases_and_bad_input():
         orbit_case("ekf_no_wrap")
     with pytest.raises(ValueError, match="n_runs"):
         mistake_row("orbit_ekf_correct", n_runs=1)
+
+
+def test_the_per_run_path_equals_the_batch_for_the_correct_ekf():
+    """The rows run by filterpy run by run (ekf_class) give, with the correct OrbitEKF, the batched EKF's
+    NEES, NIS, dof, errors and bounds on the same draws."""
+    from kfcal_helpers import montecarlo as core
+    from kfcal_helpers.orbit.mistakes import MistakeExperiment
+
+    p = OrbitParams(n_steps=150)
+    per_run = core.run(MistakeExperiment(FilterSetup("ekf", p), 3, ekf_class=OrbitEKF), 3, 5)
+    batch = core.run(MistakeExperiment(FilterSetup("ekf", p), 3), 3, 5)
+    assert np.array_equal(per_run.dof, batch.dof) and per_run.dof.sum() > 0
+    for name in ("nees", "nis", "errors", "sigma2"):
+        assert np.allclose(getattr(per_run, name), getattr(batch, name), rtol=1e-6, atol=1e-9, equal_nan=True), name
+    with pytest.raises(ValueError, match="ekf_class must be None or a subclass of OrbitEKF"):
+        MistakeExperiment(FilterSetup("ekf", p), 3, ekf_class=dict)
