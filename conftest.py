@@ -86,6 +86,7 @@ SHARED_SCOPES = {
     "tests/test_mistakes.py": "mistakes table",
     "tests/test_calibration_mistakes.py": "mistakes table",
     "tests/test_coop_mistakes.py": "mistakes table",
+    "tests/test_orbit_mistakes.py": "mistakes table",
     # nbval's run of notebook 13 is one of the modes tests/test_notebook13_modes.py checks (SLOW_FIRST:
     # the notebook first)
     "notebooks/13_coop_log_comparison.ipynb": "notebook 13",

@@ -10,7 +10,7 @@ import math
 
 from .process import PARTIAL_FILES
 
-__all__ = ["dumps_json", "PARTIAL_FILES", "require_printable", "path_text"]
+__all__ = ["dumps_json", "PARTIAL_FILES", "require_printable", "path_text", "print_summary"]
 
 
 def _strict(value):
@@ -68,3 +68,25 @@ def path_text(path, stream=None) -> str:
         except LookupError:
             return text
     return "".join(out)
+
+
+def print_summary(out: dict, as_json: bool = False, tail: str | None = None) -> None:
+    """Print a command's summary ``out`` (key -> number, text, bool or list of numbers): one strict JSON
+    object, or one ``key  value`` line per entry (numbers to 4 significant digits, booleans yes/no, texts
+    with :func:`path_text`), then ``tail`` (a table) when given."""
+    if as_json:
+        print(dumps_json(out))
+        return
+    width = max(len(k) for k in out)
+    for key, value in out.items():
+        if isinstance(value, bool):
+            value = "yes" if value else "no"
+        elif isinstance(value, float):
+            value = f"{value:.4g}"
+        elif isinstance(value, list):
+            value = "[" + ", ".join(f"{v:.4g}" for v in value) + "]"
+        elif isinstance(value, str):
+            value = path_text(value)
+        print(f"{key:<{width}}  {value}")
+    if tail:
+        print(tail)

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 from .calibration import PROBLEM as CALIBRATION
 from .coop import PROBLEM as COOP
+from .orbit import PROBLEM as ORBIT
 from .registry import Problem
 
-__all__ = ["PROBLEMS", "problem", "CALIBRATION", "COOP"]
+__all__ = ["PROBLEMS", "problem", "CALIBRATION", "COOP", "ORBIT"]
 
 #: the course problems, in lecture order
-PROBLEMS: tuple[Problem, ...] = (CALIBRATION, COOP)
+PROBLEMS: tuple[Problem, ...] = (CALIBRATION, COOP, ORBIT)
 
 
 def problem(name: str) -> Problem:

@@ -15,7 +15,7 @@ import matplotlib as mpl
 
 from .validation import require_choice
 
-__all__ = ["STYLES", "SLIDE_SIZE", "SLIDE_DPI", "INLINE_BACKEND", "style_params", "use_style", "line_width", "marker_size"]
+__all__ = ["STYLES", "SLIDE_SIZE", "SLIDE_DPI", "INLINE_BACKEND", "style_params", "use_style", "line_width", "marker_size", "figure_size"]
 
 #: width, height in inches of a slide figure; at SLIDE_DPI this is 1280 x 720 px (16:9)
 SLIDE_SIZE = (12.8, 7.2)
@@ -89,3 +89,8 @@ def line_width(scale: float = 1.0) -> float:
 def marker_size(scale: float = 1.0) -> float:
     """A marker size relative to the current ``rcParams['lines.markersize']``."""
     return scale * mpl.rcParams["lines.markersize"]
+
+
+def figure_size() -> tuple:
+    """The current ``rcParams['figure.figsize']`` (inches): the slide size while ``figures`` saves."""
+    return tuple(mpl.rcParams["figure.figsize"])

@@ -21,6 +21,7 @@ from numbers import Integral, Real
 import numpy as np
 
 __all__ = [
+    "check_every_option",
     "require_finite",
     "require_positive",
     "require_int",
@@ -387,3 +388,11 @@ def cli_float(lower: float | None = None, upper: float | None = None, lower_open
 
     parse.__name__ = "number"
     return parse
+
+
+def check_every_option(every: int, n_steps: int, what: str) -> None:
+    """``--every M`` keeps steps 0, M, 2M, ...: it must keep one after step 0 (which has no measurement).
+    ValueError naming ``--every``; ``what`` says whose steps ("the log has")."""
+    if every > n_steps - 1:
+        raise ValueError(f"--every must be at most {n_steps - 1} ({what} {n_steps} steps; every M-th step "
+                         f"must keep a measurement after step 0), got {every}")

@@ -3,18 +3,14 @@ with one line and exit 2), and bounds the peak resident memory a real process re
 ``pytest -m slow``; ``.ci/run`` runs it after ``pytest``)."""
 
 import os
-import subprocess
-import sys
 
 import pytest
+from child_memory import command_peak
 
 from kfcal_helpers.cli import main
 from kfcal_helpers.coop import CoopParams
 from kfcal_helpers.coop.montecarlo import estimate_truth_model_test
 from kfcal_helpers.montecarlo import MEMORY_LIMIT
-
-HWM = ("[int(line.split()[1]) * 1024 for line in open('/proc/self/status') "
-       "if line.startswith('VmHWM')][0]")
 
 
 def _largest_accepted(filter, workers=2):
@@ -60,16 +56,8 @@ def test_estimate_bounds_the_peak_rss_of_a_child_process(filter, runs):
     the end's statistics on top of the chunks, since memory freed by a worker thread stays with its allocator)."""
     runs = _largest_accepted(filter) if runs is None else runs
     est = estimate_truth_model_test(CoopParams(), runs, filter=filter, workers=2)
-    code = ("import sys; from kfcal_helpers.cli import main; "
-            f"code = main(['coop', '--runs', '{runs}', '--filter', '{filter}', '--json']); "
-            f"print({HWM}, file=sys.stderr); sys.exit(code)")
-    env = {"KFCAL_QUIET": "1", "KFCAL_WORKERS": "2", "PATH": ""}
-    if os.environ.get("PYTHONPATH"):
-        env["PYTHONPATH"] = os.environ["PYTHONPATH"]
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, env=env)
-    assert r.returncode == 0, r.stderr
-    peak = int(r.stderr.split()[-1])
-    assert f'"n_runs": {runs}' in r.stdout
+    out, peak = command_peak(["coop", "--runs", str(runs), "--filter", filter, "--json"], timeout=900)
+    assert f'"n_runs": {runs}' in out
     assert 0.5 * est.peak_bytes < peak <= est.peak_bytes <= MEMORY_LIMIT, (peak / 1e6, est.peak_bytes / 1e6)
 
 

@@ -71,9 +71,10 @@ def test_list_names_the_registry(tmp_path, capsys):
     assert [line.split()[0] for line in lines] == [f.name for f in FIGURES]
     assert all(len(line.split(maxsplit=1)) == 2 for line in lines)  # each with its description
     assert len({f.name for f in FIGURES}) == len(FIGURES)
-    assert all(f.name.startswith(("calib_", "coop_")) for f in FIGURES)
+    assert all(f.name.startswith(("calib_", "coop_", "orbit_")) for f in FIGURES)
     assert sum(f.name.startswith("calib_") for f in FIGURES) >= 9
     assert sum(f.name.startswith("coop_") for f in FIGURES) >= 5
+    assert sum(f.name.startswith("orbit_") for f in FIGURES) >= 3
 
 
 @pytest.mark.parametrize("argv, word", [

@@ -28,6 +28,7 @@ from kfcal_helpers.calibration import cli as calibration_cli
 from kfcal_helpers.calibration.params import CalibrationParams
 from kfcal_helpers.cli import main
 from kfcal_helpers.coop import CoopParams, simulate, write_log_csv
+from kfcal_helpers.orbit import cli as orbit_cli
 
 PROG = "python -m kfcal_helpers"
 MEMORY_LIMIT = 500e6  #: bytes, the issue's bound on the peak memory of any accepted run
@@ -168,6 +169,21 @@ BAD = [
     (["coop", "--log", "{mat_struct}"], ["ydata", "numeric", "struct"]),
     (["coop", "--log", "{mat_complex}"], ["ydata", "real numbers"]),
     (["coop", "--log", "{mat_garbage}"], ["--log", "not a readable MATLAB file"]),
+    # orbit
+    (["orbit", "--seed", "-1"], ["--seed"]),
+    (["orbit", "--runs", "1"], ["--runs", "2 to 10000"]),
+    (["orbit", "--runs", "1000000"], ["--runs", "10000"]),
+    (["orbit", "--runs", "9000"], ["--runs: 9000 realizations", "500 MB"]),
+    (["orbit", "--runs", "2", "--log", "{tmp}"], ["--runs", "--log"]),
+    (["orbit", "--every", "0"], ["--every"]),
+    (["orbit", "--every", "1401"], ["--every", "at most 1400"]),
+    (["orbit", "--runs", "2", "--every", "1401"], ["--every", "at most 1400", "truth model"]),
+    (["orbit", "--alpha", "nan"], ["--alpha"]),
+    (["orbit", "--filter", "pf"], ["--filter"]),
+    (["orbit", "--log", "{tmp}/missing.mat"], ["--log", "does not exist"]),
+    (["orbit", "--log", "{file}"], ["--log", ".mat"]),
+    (["orbit", "--log", "{mat_garbage}"], ["--log", "not a readable MATLAB file"]),
+    (["orbit", "--log", "{log_ydata_dir}"], ["--log", "ydata.csv is a directory"]),
     # figures
     (["figures", "{file}"], ["DIR", "existing file"]),
     (["figures", "{file}/sub"], ["DIR", "is a file"]),
@@ -250,10 +266,11 @@ def test_bad_input_one_line_exit_2(argv, words, tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(calibration_cli, "run_monte_carlo", no_monte_carlo)
     monkeypatch.setattr(coop_cli, "truth_model_test", no_monte_carlo)
     monkeypatch.setattr(coop_cli, "fit_q_scale", no_monte_carlo)
+    monkeypatch.setattr(orbit_cli, "truth_model_test", no_monte_carlo)
     _no_figure_data(monkeypatch, no_monte_carlo)
     code, out, err = _run(argv, capsys)
     assert code == 2 and out == ""
-    command = argv[0] if argv and argv[0] in ("calibrate", "coop", "figures") else None
+    command = argv[0] if argv and argv[0] in ("calibrate", "coop", "orbit", "figures") else None
     _one_error_line(err, command)
     for word in words:
         assert word in err, (word, err)
@@ -272,6 +289,8 @@ GOOD = [
     ["coop", "--q-scale", "1e6", "--json"],
     ["coop", "--q-scale", "1e-6", "--filter", "ukf", "--json"],
     ["coop", "--runs", "1", "--alpha", "0.5", "--json"],
+    ["orbit", "--runs", "2", "--alpha", "0.5", "--every", "1400", "--json"],
+    ["orbit", "--filter", "lkf", "--every", "700", "--json"],
 ]
 
 

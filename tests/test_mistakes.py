@@ -6,12 +6,14 @@ import pytest
 
 from kfcal_helpers.mistakes import all_mistakes, format_mistake_table, mistake_table, table_checks
 
-from mistake_expectations import CALIBRATION_CAUGHT_BY, CHECK_NAMES, COOP_ALL, COOP_CAUGHT_BY
+from mistake_expectations import CALIBRATION_CAUGHT_BY, CHECK_NAMES, COOP_ALL, COOP_CAUGHT_BY, ORBIT_CAUGHT_BY
 
 CALIBRATION_MISTAKES = tuple(CALIBRATION_CAUGHT_BY)
 COOP_MISTAKES = tuple(COOP_CAUGHT_BY)
-MISTAKES = (*CALIBRATION_MISTAKES, *COOP_MISTAKES)
-CAUGHT_BY = {**CALIBRATION_CAUGHT_BY, **COOP_CAUGHT_BY}  #: what notebook 14 says, check by check
+ORBIT_MISTAKES = tuple(ORBIT_CAUGHT_BY)
+MISTAKES = (*CALIBRATION_MISTAKES, *COOP_MISTAKES, *ORBIT_MISTAKES)
+#: what notebook 14 says, check by check (the orbit rows: tests/test_orbit_mistakes.py)
+CAUGHT_BY = {**CALIBRATION_CAUGHT_BY, **COOP_CAUGHT_BY, **ORBIT_CAUGHT_BY}
 
 
 @pytest.fixture(scope="module")

@@ -23,8 +23,8 @@ import time
 
 import numpy as np
 
-from ..output import dumps_json
-from ..validation import MAX_SEED, MIN_ALPHA, cli_float, cli_int, require_int, require_positive
+from ..output import print_summary
+from ..validation import MAX_SEED, MIN_ALPHA, check_every_option, cli_float, cli_int, require_int, require_positive
 from .data import load_log
 from .filters import FILTERS, TUNED_Q_SCALE, fit_q_scale, log_summary, run_filter
 from .model import CoopParams
@@ -80,13 +80,6 @@ def add_parser(subparsers):
     return p
 
 
-def _check_every(every: int, n_steps: int, what: str) -> None:
-    """``--every M`` keeps steps 0, M, 2M, ...: it must keep one after step 0 (which has no measurement)."""
-    if every > n_steps - 1:
-        raise ValueError(f"--every must be at most {n_steps - 1} ({what} {n_steps} steps; every M-th step "
-                         f"must keep a measurement after step 0), got {every}")
-
-
 def run(args) -> int:
     """Run the sub-command; returns the exit code (ValueError for bad input)."""
     every = require_int("--every", args.every, minimum=1)
@@ -99,7 +92,7 @@ def run(args) -> int:
         if q_scale == "auto":
             raise ValueError("q-scale 'auto' fits Q to a log; a truth-model Monte Carlo needs a number or the default")
         params = CoopParams()
-        _check_every(every, params.n_samples, "the truth model has")
+        check_every_option(every, params.n_samples, "the truth model has")
         scale = TUNED_Q_SCALE[args.filter] if q_scale is None else q_scale
         # refused before any work (one line, exit 2) when the per-run arrays would exceed 500 MB
         estimate_truth_model_test(params, runs, filter=args.filter, every=every, runs_name="--runs",
@@ -115,7 +108,7 @@ def run(args) -> int:
         else:
             log = simulate(seed=DEFAULT_LOG_SEED if args.seed is None else args.seed).log()
         if every > 1:
-            _check_every(every, log.n_samples, "the log has")
+            check_every_option(every, log.n_samples, "the log has")
             log = log.every(every)
             if not np.isfinite(log.y).any():
                 raise ValueError(f"--every {every} keeps no measurement of this log (the steps it keeps are NaN)")
@@ -141,16 +134,5 @@ def run(args) -> int:
             out["fit_scales_inside_nis_bounds"] = ([float(inside.min()), float(inside.max())] if inside.size
                                                    else [])
     out["seconds"] = time.perf_counter() - t0
-    if args.json:
-        print(dumps_json(out))
-    else:
-        width = max(len(k) for k in out)
-        for key, value in out.items():
-            if isinstance(value, bool):
-                value = "yes" if value else "no"
-            elif isinstance(value, float):
-                value = f"{value:.4g}"
-            elif isinstance(value, list):
-                value = "[" + ", ".join(f"{v:.4g}" for v in value) + "]"
-            print(f"{key:<{width}}  {value}")
+    print_summary(out, args.json)
     return 0

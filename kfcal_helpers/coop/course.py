@@ -15,6 +15,7 @@ import numpy as np
 
 from functools import partial
 
+from ..logfiles import env_path
 from ..validation import checked, optional, require_instance, require_seed
 from .data import CoopLog, load_log
 from .model import CoopParams
@@ -47,11 +48,7 @@ def is_course_log(log: CoopLog, params: CoopParams | None = None) -> bool:
 
 def course_log_path() -> Path | None:
     """The path named by ``KFCAL_COURSE_LOG`` if it exists, else None."""
-    value = os.environ.get(COURSE_LOG_VARIABLE, "").strip()
-    if not value:
-        return None
-    path = Path(value).expanduser()
-    return path if path.exists() else None
+    return env_path(COURSE_LOG_VARIABLE)
 
 
 @checked(params=optional(partial(require_instance, cls=CoopParams)), seed=partial(require_seed, allow_none=False))

@@ -76,9 +76,9 @@ def figure_data() -> CoopCase:
 # ---------------------------------------------------------------------------
 # The figure functions (each returns a Figure; sizes from rcParams, the slide size when saving)
 def _size():
-    import matplotlib as mpl
+    from ..style import figure_size
 
-    return tuple(mpl.rcParams["figure.figsize"])
+    return figure_size()
 
 
 def coop_paths(data: CoopCase):

@@ -17,12 +17,21 @@ Modules:
 * :mod:`.batch` -- the same three filters on N realizations at once (the stations of each run masked
   into common slots), proven equal to the per-run filters: :func:`run_batch`, :class:`BatchResult`;
 * :mod:`.montecarlo` -- truth-model tests through the shared Monte Carlo core (:class:`OrbitExperiment`,
-  :func:`truth_model_test`), NEES and NIS checked per step with the dof present.
+  :func:`truth_model_test`), NEES and NIS checked per step with the dof present;
+* :mod:`.data` -- the course's log (``.mat``, ``KFCAL_ORBIT_LOG``) or a CSV folder, read with bounds, and the
+  seeded generated stand-in (:func:`course_log`); :mod:`.cli` -- ``python -m kfcal_helpers orbit``;
+* :mod:`.figures` -- the lecture figures; :mod:`.mistakes` -- the rows of the mistakes table.
 
-Not yet registered in :mod:`kfcal_helpers.problems` (no command line, plots or mistakes yet).
+:data:`PROBLEM` is the problem's entry of :mod:`kfcal_helpers.problems`: its sub-command, lecture figures and
+mistakes.  matplotlib is imported only when a figure is drawn.
 """
 
+from .. import registry
+from . import cli, figures, mistakes
+
 from .batch import BatchResult, run_batch
+from .data import (COURSE_LOG_VARIABLE, course_log, course_log_path, load_log, log_params, write_generated_log, write_log_csv,
+                   write_log_mat)
 from .filters import FILTERS, FilterResult, FilterSetup, OrbitEKF, run, run_ekf, run_filter, run_lkf, run_ukf
 from .model import (
     PHI,
@@ -62,4 +71,11 @@ __all__ = [
     "MAX_STATIONS", "N_NOISE", "N_STATES", "N_STATION_MEAS", "OrbitParams",
     "DEFAULT_LOG_SEED", "OrbitLog", "Simulation", "from_columns", "integrate", "simulate", "simulate_measurements",
     "simulate_truth", "to_columns",
+    "COURSE_LOG_VARIABLE", "course_log", "course_log_path", "load_log", "log_params", "write_log_csv", "write_log_mat",
+    "write_generated_log", "PROBLEM",
 ]
+
+#: the orbit-determination problem as the command line, ``figures`` and the mistakes table see it
+PROBLEM = registry.Problem(name="orbit", title="orbit determination from 12 rotating ground stations",
+                           add_cli=cli.add_parser, figures=figures.FIGURES, figure_data=figures.figure_data,
+                           mistakes=mistakes.MISTAKES, mistake_row=mistakes.mistake_row)
