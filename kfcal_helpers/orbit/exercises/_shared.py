@@ -1,0 +1,27 @@
+"""What the orbit-determination checks share: the exercises' numbers (as the notebooks' exercise texts
+state them) and tolerances."""
+
+from __future__ import annotations
+
+# ---------------------------------------------------------------------------
+# Parameters of the exercises (as stated in the notebooks' exercise texts); the course's OrbitParams
+# (mu = 398600 km^3/s^2, RE = 6378 km, omegaE = 2 pi / 86400 rad/s, 12 stations) otherwise.
+#: 19.1: the satellite's state [X, Xdot, Y, Ydot] (km, km/s), the time (s) and the station (1..12)
+MEAS_X = (-1200.0, -7.5, 6560.0, -1.4)
+MEAS_T = 3000.0
+MEAS_STATION = 4
+#: 19.2: the satellite's state and the time (s) at which the visible stations are asked
+VIS_X = (6640.0, 1.0, -880.0, 7.7)
+VIS_T = 9000.0
+#: 19.3: the initial perturbation [dX, dXdot, dY, dYdot] (km, km/s) of the orbit whose period is asked
+PERIOD_DX0 = (0.0, 0.075, 0.0, -0.021)
+#: 20.1: the state at which A is asked
+A_X = (5000.0, -4.0, 4400.0, 5.0)
+#: 20.2: the state, time (s) and station (1..12) of the range-rate row of C_i
+ROW_X = (-1200.0, -7.5, 6560.0, -1.4)
+ROW_T = 3000.0
+ROW_STATION = 4
+#: 20.3: the sampling interval (s) of F = expm(dt A) on the nominal at t = 0
+EXPM_DT = 600.0
+
+NUM_RTOL, NUM_ATOL = 1e-7, 1e-12  # numeric answers: the computed value (no rounding), any float-exact formula
