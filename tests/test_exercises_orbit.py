@@ -171,3 +171,166 @@ def test_the_notebook_states_the_exercises_numbers():
     assert "$x = [6640,\\ 1.0,\\ -880,\\ 7.7]^T$" in text and "At $t = 9000$ s" in text
     assert _shared.VIS_X == (6640.0, 1.0, -880.0, 7.7) and _shared.VIS_T == 9000.0
     assert "$\\delta x_0 = [0,\\ 0.075,\\ 0,\\ -0.021]^T$" in text and _shared.PERIOD_DX0 == (0.0, 0.075, 0.0, -0.021)
+
+
+# ---------------------------------------------------------------------------
+# 20.1
+XA = np.array(_shared.A_X)
+
+
+def f_ct(x):
+    r3 = math.hypot(x[0], x[2]) ** 3
+    return np.array([x[1], -MU * x[0] / r3, x[3], -MU * x[2] / r3])
+
+
+def complex_step_jacobian(fun, x):
+    """Jacobian by complex steps (exact to rounding): Im f(x + i h e_j) / h."""
+    h = 1e-30
+    cols = []
+    for j in range(x.size):
+        z = x.astype(complex)
+        z[j] += 1j * h
+        cols.append(np.imag(fun(z)) / h)
+    return np.stack(cols, axis=-1)
+
+
+def f_complex(x):
+    r3 = np.sqrt(x[0] ** 2 + x[2] ** 2) ** 3
+    return np.array([x[1], -MU * x[0] / r3, x[3], -MU * x[2] / r3])
+
+
+def test_20_1_accepts_the_complex_step_jacobian():
+    A = complex_step_jacobian(f_complex, XA)
+    assert np.allclose(A[[0, 2]], [[0, 1, 0, 0], [0, 0, 0, 1]])
+    fb = ex.check_gravity_jacobian(A)
+    assert fb.correct, str(fb)
+
+
+@pytest.mark.parametrize("key", ["sign", "constant_r", "no_kinematics", "swapped_xy"])
+def test_20_1_names_each_mistake(key):
+    A = complex_step_jacobian(f_complex, XA)
+    X, Y = XA[0], XA[2]
+    r = math.hypot(X, Y)
+    wrong = A.copy()
+    if key == "sign":
+        wrong[[1, 3]] = -A[[1, 3]]
+    elif key == "constant_r":          # d(-mu X / r^3)/dX with r held fixed
+        wrong[1, 0], wrong[1, 2], wrong[3, 0], wrong[3, 2] = -MU / r**3, 0.0, 0.0, -MU / r**3
+    elif key == "no_kinematics":
+        wrong[0, 1] = wrong[2, 3] = 0.0
+    else:
+        wrong[1, 0], wrong[3, 2] = A[3, 2], A[1, 0]
+    fb = ex.check_gravity_jacobian(wrong)
+    assert not fb.correct and fb.message == hint("20.1", key), str(fb)
+
+
+def test_20_1_transposed_and_rounded():
+    A = complex_step_jacobian(f_complex, XA)
+    assert "transposed" in ex.check_gravity_jacobian(A.T).message
+    assert ex.check_gravity_jacobian(np.round(A, 8)).message == ROUNDED_HINT
+
+
+# ---------------------------------------------------------------------------
+# 20.2
+XR, TR, SR = np.array(_shared.ROW_X), _shared.ROW_T, _shared.ROW_STATION
+
+
+def rhodot_complex(x, t=TR, i=SR, **kw):
+    pos, vel = station_c(t, i, **kw)
+    dX, dY = x[0] - pos.real, x[2] - pos.imag
+    dVX, dVY = x[1] - vel.real, x[3] - vel.imag
+    return np.array([(dX * dVX + dY * dVY) / np.sqrt(dX**2 + dY**2)])
+
+
+def test_20_2_accepts_the_complex_step_row():
+    row = complex_step_jacobian(rhodot_complex, XR)[0]
+    fb = ex.check_range_rate_row(row)
+    assert fb.correct, str(fb)
+
+
+@pytest.mark.parametrize("key", ["rho_constant", "station_fixed", "range_row", "velocity_only", "zero_based"])
+def test_20_2_names_each_mistake(key):
+    pos, vel = station_c(TR, SR)
+    dX, dY = XR[0] - pos.real, XR[2] - pos.imag
+    dVX, dVY = XR[1] - vel.real, XR[3] - vel.imag
+    rho = math.hypot(dX, dY)
+    if key == "rho_constant":
+        wrong = np.array([dVX, dX, dVY, dY]) / rho
+    elif key == "station_fixed":
+        def fixed(x):
+            ddX, ddY = x[0] - pos.real, x[2] - pos.imag
+            return np.array([(ddX * x[1] + ddY * x[3]) / np.sqrt(ddX**2 + ddY**2)])
+        wrong = complex_step_jacobian(fixed, XR)[0]
+    elif key == "range_row":
+        wrong = np.array([dX / rho, 0.0, dY / rho, 0.0])
+    elif key == "velocity_only":
+        wrong = np.array([0.0, dX / rho, 0.0, dY / rho])
+    else:
+        wrong = complex_step_jacobian(lambda x: rhodot_complex(x, offset=0), XR)[0]
+    fb = ex.check_range_rate_row(wrong)
+    assert not fb.correct and fb.message == hint("20.2", key), str(fb)
+
+
+# ---------------------------------------------------------------------------
+# 20.3
+def A_nominal():
+    n = math.sqrt(MU / R0**3)
+    return complex_step_jacobian(f_complex, np.array([R0, 0.0, 0.0, R0 * n]))
+
+
+def taylor_expm(M, terms=80):
+    """exp(M) by its series, scaled and squared (another route than scipy's Pade)."""
+    s = 10
+    B = M / 2**s
+    out, term = np.eye(len(M)), np.eye(len(M))
+    for k in range(1, terms):
+        term = term @ B / k
+        out = out + term
+    for _ in range(s):
+        out = out @ out
+    return out
+
+
+def test_20_3_accepts_the_series_exponential():
+    F = taylor_expm(_shared.EXPM_DT * A_nominal())
+    fb = ex.check_expm_F(F)
+    assert fb.correct, str(fb)
+
+
+@pytest.mark.parametrize("key", ["euler", "elementwise", "no_dt", "dt_outside"])
+def test_20_3_names_each_mistake(key):
+    A, dt = A_nominal(), _shared.EXPM_DT
+    with np.errstate(over="ignore"):
+        wrong = {"euler": np.eye(4) + dt * A, "elementwise": np.exp(dt * A), "no_dt": taylor_expm(A),
+                 "dt_outside": dt * taylor_expm(A)}[key]
+    fb = ex.check_expm_F(wrong)
+    assert not fb.correct and fb.message == hint("20.3", key), str(fb)
+
+
+def test_every_listed_hint_of_20_is_tested_and_placeholders_are_unanswered():
+    tested = {"20.1": {"sign", "constant_r", "no_kinematics", "swapped_xy"},
+              "20.2": {"rho_constant", "station_fixed", "range_row", "velocity_only", "zero_based"},
+              "20.3": {"euler", "elementwise", "no_dt", "dt_outside"}}
+    for exercise, keys in tested.items():
+        assert set(ex.EXERCISES[exercise].hints) == keys
+    for check in (ex.check_gravity_jacobian, ex.check_range_rate_row, ex.check_expm_F, ex.check_visible_stations,
+                  ex.check_perturbed_period):
+        fb = check(...)
+        assert not fb.correct and not fb.answered
+
+
+def test_the_notebook_20_states_the_exercises_numbers():
+    from pathlib import Path
+    text = (Path(__file__).resolve().parents[1] / "notebooks" / "source" / "20_orbit_linearization.md").read_text()
+    assert "$x = [5000,\\ -4.0,\\ 4400,\\ 5.0]^T$" in text and _shared.A_X == (5000.0, -4.0, 4400.0, 5.0)
+    assert "station 4 at $t = 3000$ s" in text and "$x = [-1200,\\ -7.5,\\ 6560,\\ -1.4]^T$" in text
+    assert (_shared.ROW_X, _shared.ROW_T, _shared.ROW_STATION) == ((-1200.0, -7.5, 6560.0, -1.4), 3000.0, 4)
+    assert "$\\Delta T$ = 600 s" in text and _shared.EXPM_DT == 600.0
+
+
+@pytest.mark.parametrize("check", [ex.check_station_measurement, ex.check_range_rate_row])
+@pytest.mark.parametrize("setting, name", [({"station": 13}, "station"), ({"station": 0}, "station"),
+                                           ({"t": float("nan")}, "t"), ({"x": [1.0, 2.0]}, "x")])
+def test_bad_settings_raise_valueerror_naming_them(check, setting, name):
+    with pytest.raises(ValueError, match=f"^{name} "):
+        check(np.zeros(3), **setting)

@@ -7,15 +7,15 @@ import math
 import numpy as np
 
 from ...exercises._core import Exercise, Feedback, as_array, distinct_mistakes, unanswered
-from ...validation import require_int, require_shape
+from ...validation import require_finite, require_shape
 from ..model import measure_relative, station_states, visible
-from ..params import N_STATES, OrbitParams
-from ._shared import MEAS_STATION, MEAS_T, MEAS_X, NUM_ATOL, NUM_RTOL, PERIOD_DX0, VIS_T, VIS_X
+from ..params import N_STATES
+from ._shared import PARAMS, station_setting, MEAS_STATION, MEAS_T, MEAS_X, NUM_ATOL, NUM_RTOL, PERIOD_DX0, VIS_T, VIS_X
 
 __all__ = ["STATION_MEASUREMENT", "VISIBLE_STATIONS", "PERTURBED_PERIOD", "RECORDS", "check_station_measurement",
            "check_visible_stations", "check_perturbed_period"]
 
-_P = OrbitParams()
+_P = PARAMS
 
 
 def _station_variant(t, station, mistake):
@@ -55,11 +55,7 @@ def check_station_measurement(answer, *, x=MEAS_X, t: float = MEAS_T, station: i
 
     answer : array (3,)
     """
-    x = require_shape("x", x, (N_STATES,))
-    station = require_int("station", station, minimum=1)
-    if station > _P.n_stations:
-        raise ValueError(f"station must be an integer in 1..{_P.n_stations}, got {station}")
-    t = float(t)
+    x, t, station = station_setting(x, t, station)
     E = STATION_MEASUREMENT
     expected = measure_relative(x - _station_variant(t, station, "right"))
     d = x - _station_variant(t, station, "right")
@@ -104,7 +100,7 @@ def check_visible_stations(answer, *, x=VIS_X, t: float = VIS_T) -> Feedback:
     answer : integer array (m,) -- the visible stations' ids
     """
     x = require_shape("x", x, (N_STATES,))
-    t = float(t)
+    t = require_finite("t", t)
     E = VISIBLE_STATIONS
     expected = np.flatnonzero(visible(x, t, _P)) + 1.0
     a = as_array(answer)

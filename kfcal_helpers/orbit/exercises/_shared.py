@@ -3,6 +3,14 @@ state them) and tolerances."""
 
 from __future__ import annotations
 
+import numpy as np
+
+from ...validation import require_finite, require_int, require_shape
+from ..params import N_STATES, OrbitParams
+
+#: the course's parameters, which every exercise uses
+PARAMS = OrbitParams()
+
 # ---------------------------------------------------------------------------
 # Parameters of the exercises (as stated in the notebooks' exercise texts); the course's OrbitParams
 # (mu = 398600 km^3/s^2, RE = 6378 km, omegaE = 2 pi / 86400 rad/s, 12 stations) otherwise.
@@ -25,3 +33,10 @@ ROW_STATION = 4
 EXPM_DT = 600.0
 
 NUM_RTOL, NUM_ATOL = 1e-7, 1e-12  # numeric answers: the computed value (no rounding), any float-exact formula
+
+
+def station_setting(x, t, station: int) -> tuple[np.ndarray, float, int]:
+    """The settings of a one-station exercise, checked: ``x`` (4,) the satellite state (km, km/s), ``t`` the time
+    (s, finite), ``station`` (1..n_stations, the course's numbering); ValueError naming the argument otherwise."""
+    return (require_shape("x", x, (N_STATES,)), require_finite("t", t),
+            require_int("station", station, minimum=1, maximum=PARAMS.n_stations))
