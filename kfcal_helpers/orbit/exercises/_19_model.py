@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 
-from ...exercises._core import Exercise, Feedback, as_array, distinct_mistakes, unanswered
+from ...exercises._core import Exercise, Feedback, as_array, distinct_mistakes, judge, unanswered
 from ...validation import require_finite, require_shape
 from ..model import measure_relative, station_states, visible
 from ..params import N_STATES
-from ._shared import PARAMS, station_setting, MEAS_STATION, MEAS_T, MEAS_X, NUM_ATOL, NUM_RTOL, PERIOD_DX0, VIS_T, VIS_X
+from ._shared import PARAMS, in_km, station_setting, MEAS_STATION, MEAS_T, MEAS_X, NUM_ATOL, NUM_RTOL, PERIOD_DX0, VIS_T, VIS_X
 
 __all__ = ["STATION_MEASUREMENT", "VISIBLE_STATIONS", "PERTURBED_PERIOD", "RECORDS", "check_station_measurement",
            "check_visible_stations", "check_perturbed_period"]
@@ -65,7 +65,7 @@ def check_station_measurement(answer, *, x=MEAS_X, t: float = MEAS_T, station: i
     swapped[2] = math.atan2(d[0], d[2])
     wrong = [(measure_relative(x - _station_variant(t, station, m)), m) for m in ("zero_based", "no_rotation", "fixed_station")]
     wrong += [(reversed_phi, "reversed"), (swapped, "atan2_order")]
-    return E.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL, atol=NUM_ATOL)
+    return in_km(E.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL, atol=NUM_ATOL))
 
 
 VISIBLE_STATIONS = Exercise(
@@ -115,7 +115,9 @@ def check_visible_stations(answer, *, x=VIS_X, t: float = VIS_T) -> Feedback:
     wrong = [(expected - 1.0, "zero_based"), (_visible_ids(x, t, rule="position"), "position_rule"),
              (_visible_ids(x, t, rotate=False), "no_rotation")]
     wrong = [(v, k) for v, k in wrong if not (v.shape == expected.shape and np.array_equal(v, expected))]
-    return E.judge(answer, expected, wrong, rtol=0.0, atol=1e-9)
+    # ids are whole numbers without units: no units, degree or order slip is tried (the order is told above)
+    pairs = [(value, E.hints[key]) for value, key in wrong]
+    return judge(E.id, answer, expected, pairs, rtol=0.0, atol=1e-9, praise=E.praise, hint=E.hint, slips=False)
 
 
 PERTURBED_PERIOD = Exercise(
@@ -162,8 +164,8 @@ def check_perturbed_period(answer, *, dx0=PERIOD_DX0) -> Feedback:
     wrong = [(_P.period, "nominal"), (_period(x0, half=False), "no_half"), (_period(x0, a_from="speed"), "circular_speed"),
              (expected / 60.0, "minutes"), (_period(x0, a_from="radius"), "radius_a")]
     wrong = [(v, k) for v, k in wrong if math.isfinite(v)]
-    return PERTURBED_PERIOD.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL,
-                                  atol=NUM_ATOL)
+    return in_km(PERTURBED_PERIOD.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL,
+                                        atol=NUM_ATOL))
 
 
 #: the exercise records of this lesson, in notebook order

@@ -9,7 +9,7 @@ from ...exercises._core import Exercise, Feedback, distinct_mistakes
 from ...validation import require_positive, require_shape
 from ..model import jacobian_A, jacobian_C, jacobian_relative, nominal_state, station_states
 from ..params import N_STATES
-from ._shared import PARAMS, station_setting, A_X, EXPM_DT, NUM_ATOL, NUM_RTOL, ROW_STATION, ROW_T, ROW_X
+from ._shared import PARAMS, in_km, station_setting, A_X, EXPM_DT, NUM_ATOL, NUM_RTOL, ROW_STATION, ROW_T, ROW_X
 
 __all__ = ["GRAVITY_JACOBIAN", "RANGE_RATE_ROW", "EXPM_F", "RECORDS", "check_gravity_jacobian", "check_range_rate_row",
            "check_expm_F"]
@@ -52,8 +52,8 @@ def check_gravity_jacobian(answer, *, x=A_X) -> Feedback:
     swapped = expected.copy()
     swapped[1, 0], swapped[3, 2] = expected[3, 2], expected[1, 0]
     wrong = [(sign, "sign"), (constant_r, "constant_r"), (kin, "no_kinematics"), (swapped, "swapped_xy")]
-    return GRAVITY_JACOBIAN.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL,
-                                  atol=1e-15)
+    return in_km(GRAVITY_JACOBIAN.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL,
+                                        atol=1e-15))
 
 
 RANGE_RATE_ROW = Exercise(
@@ -90,8 +90,8 @@ def check_range_rate_row(answer, *, x=ROW_X, t: float = ROW_T, station: int = RO
     wrong = [(rho_constant, "rho_constant"), (jacobian_relative(fixed)[1], "station_fixed"), (C[i, 0], "range_row"),
              (np.array([0.0, d[0] / rho, 0.0, d[2] / rho]), "velocity_only"),
              (C[station % _P.n_stations, 1], "zero_based")]
-    return RANGE_RATE_ROW.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL,
-                                atol=NUM_ATOL)
+    return in_km(RANGE_RATE_ROW.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL,
+                                      atol=NUM_ATOL))
 
 
 EXPM_F = Exercise(
@@ -121,7 +121,7 @@ def check_expm_F(answer, *, dt: float = EXPM_DT) -> Feedback:
     wrong = [(np.eye(N_STATES) + dt * A, "euler"), (elementwise, "elementwise"), (expm(A), "no_dt"),
              (dt * expm(A), "dt_outside")]
     wrong = [(v, k) for v, k in wrong if np.all(np.isfinite(v))]
-    return EXPM_F.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL, atol=NUM_ATOL)
+    return in_km(EXPM_F.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL, atol=NUM_ATOL))
 
 
 #: the exercise records of this lesson, in notebook order

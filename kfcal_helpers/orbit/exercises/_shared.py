@@ -3,8 +3,11 @@ state them) and tolerances."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from ...exercises._core import Feedback
 from ...validation import require_finite, require_int, require_shape
 from ..params import N_STATES, OrbitParams
 
@@ -40,3 +43,18 @@ def station_setting(x, t, station: int) -> tuple[np.ndarray, float, int]:
     (s, finite), ``station`` (1..n_stations, the course's numbering); ValueError naming the argument otherwise."""
     return (require_shape("x", x, (N_STATES,)), require_finite("t", t),
             require_int("station", station, minimum=1, maximum=PARAMS.n_stations))
+
+
+#: the orbit exercises' units, named in a units slip's hint instead of the harness's SI units (m, m/s)
+KM_UNITS = "(the orbit exercises work in km, km/s, s and rad: not m or m/s)"
+
+
+def in_km(feedback: Feedback) -> Feedback:
+    """``feedback`` with a units slip's hint naming the orbit exercises' units (km, km/s, s, rad) instead of the
+    shared harness's SI units (m, m/s): the right answer scaled by 1000 is an answer in m."""
+    message = feedback.message
+    start = message.find("(the exercise works in SI units")
+    if feedback.correct or start < 0:
+        return feedback
+    end = message.find(")", start)
+    return replace(feedback, message=message[:start] + KM_UNITS + message[end + 1:])
