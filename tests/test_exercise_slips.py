@@ -286,8 +286,8 @@ def slip_table():
 
 
 def test_the_contributing_table_lists_exactly_the_slips_tested():
-    table = slip_table()
-    assert set(table) == set(RECORDS), "one row per exercise"
+    table = {ex: slips for ex, slips in slip_table().items() if ex[:2] not in ("19", "20", "21", "22", "23")}
+    assert set(table) == set(RECORDS), "one row per exercise"   # orbit's rows: tests/test_exercise_slips_orbit.py
     tested = {ex: set() for ex in RECORDS}
     for row in NUMERIC_ROWS + FUNCTION_ROWS:
         tested[row[0]].add(row[1])

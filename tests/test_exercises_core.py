@@ -84,8 +84,9 @@ def test_a_matrix_rounded_to_fixed_decimals_counts_as_close():
 def _all_checks():
     import kfcal_helpers.calibration.exercises as cal
     import kfcal_helpers.coop.exercises as coop
+    import kfcal_helpers.orbit.exercises as orbit
 
-    return [(m.__name__.split(".")[1], name, getattr(m, name)) for m in (cal, coop) for name in m.__all__
+    return [(m.__name__.split(".")[1], name, getattr(m, name)) for m in (cal, coop, orbit) for name in m.__all__
             if name.startswith("check_")]
 
 

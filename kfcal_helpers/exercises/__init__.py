@@ -1,7 +1,8 @@
 """The harness of the exercise self-checks at the end of each notebook.
 
 The checks themselves live with their problem: :mod:`kfcal_helpers.calibration.exercises`
-(notebooks 01-07, 14-17) and :mod:`kfcal_helpers.coop.exercises` (08-14, 18).  Each is named
+(notebooks 01-07, 14-17), :mod:`kfcal_helpers.coop.exercises` (08-14, 18) and
+:mod:`kfcal_helpers.orbit.exercises` (19-20).  Each is named
 ``check_<topic>(answer, *, settings...)``: the student's answer (a number, an array or a function)
 first, every setting keyword-only.  It returns a :class:`Feedback` that shows as one line: correct,
 or a hint at the likely mistake (wrong sign, swapped variances, missing wrap...) without the answer.

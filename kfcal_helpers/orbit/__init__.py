@@ -21,6 +21,7 @@ Modules:
 * :mod:`.data` -- the course's log (``.mat``, ``KFCAL_ORBIT_LOG``) or a CSV folder, read with bounds, and the
   seeded generated stand-in (:func:`course_log`); :mod:`.cli` -- ``python -m kfcal_helpers orbit``;
 * :mod:`.figures` -- the lecture figures; :mod:`.mistakes` -- the rows of the mistakes table.
+* :mod:`.exercises` -- the exercise checks of the orbit notebooks (imported by the notebooks, not here).
 
 :data:`PROBLEM` is the problem's entry of :mod:`kfcal_helpers.problems`: its sub-command, lecture figures and
 mistakes.  matplotlib is imported only when a figure is drawn.

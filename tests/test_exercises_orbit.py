@@ -1,0 +1,336 @@
+"""Exercise checks of notebooks 19-20 (kfcal_helpers.orbit.exercises).
+
+For every check: (1) it accepts the right answer, computed here by another route than the check's
+(complex numbers for positions and velocities, the orbit integrated by solve_ivp, finite differences,
+a Taylor series for expm); (2) it rejects each listed wrong answer, built here by making the mistake,
+with that mistake's hint; (3) the placeholder gives "not answered yet"; (4) slips get their hint.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from kfcal_helpers.exercises._core import ROUNDED_HINT
+from kfcal_helpers.orbit import exercises as ex
+from kfcal_helpers.orbit.exercises import _shared
+
+MU, RE, WE, R0 = 398600.0, 6378.0, 2 * math.pi / 86400, 6678.0
+
+
+def hint(exercise, key):
+    return ex.EXERCISES[exercise].hints[key]
+
+
+def station_c(t, i, *, offset=1, rotate=True):
+    """Station i's position and velocity as complex numbers X + iY (the Earth's rotation as e^{i omegaE t})."""
+    th = (WE * t if rotate else 0.0) + (i - offset) * math.pi / 6
+    pos = RE * np.exp(1j * th)
+    return pos, 1j * WE * pos
+
+
+def measurement_c(x, t, i, **kw):
+    pos, vel = station_c(t, i, **kw)
+    d = complex(x[0], x[2]) - pos
+    dv = complex(x[1], x[3]) - vel
+    rho = abs(d)
+    return np.array([rho, (d.conjugate() * dv).real / rho, np.angle(d)])
+
+
+# ---------------------------------------------------------------------------
+# 19.1
+X1, T1, S1 = np.array(_shared.MEAS_X), _shared.MEAS_T, _shared.MEAS_STATION
+
+
+def test_19_1_accepts_the_measurement_computed_with_complex_numbers():
+    fb = ex.check_station_measurement(measurement_c(X1, T1, S1))
+    assert fb.correct, str(fb)
+
+
+@pytest.mark.parametrize("key", ["zero_based", "no_rotation", "fixed_station", "reversed", "atan2_order"])
+def test_19_1_names_each_mistake(key):
+    right = measurement_c(X1, T1, S1)
+    if key == "zero_based":
+        wrong = measurement_c(X1, T1, S1, offset=0)
+    elif key == "no_rotation":
+        wrong = measurement_c(X1, T1, S1, rotate=False)
+    elif key == "fixed_station":
+        pos, _ = station_c(T1, S1)
+        d = complex(X1[0], X1[2]) - pos
+        wrong = np.array([abs(d), (d.conjugate() * complex(X1[1], X1[3])).real / abs(d), np.angle(d)])
+    elif key == "reversed":
+        wrong = right.copy()
+        wrong[2] = np.angle(-np.exp(1j * right[2]))
+    else:
+        pos, _ = station_c(T1, S1)
+        d = complex(X1[0], X1[2]) - pos
+        wrong = right.copy()
+        wrong[2] = math.atan2(d.real, d.imag)
+    fb = ex.check_station_measurement(wrong)
+    assert not fb.correct and fb.message == hint("19.1", key), str(fb)
+
+
+def test_19_1_slips_placeholder_and_rounding():
+    right = measurement_c(X1, T1, S1)
+    deg = right.copy()
+    deg[2] = np.degrees(deg[2])
+    assert "degrees" in ex.check_station_measurement(deg).message
+    assert "only the range rho is off" in ex.check_station_measurement(right * [1000, 1, 1]).message  # m for km
+    assert "1000 times" in ex.check_station_measurement(right * 1000).message
+    assert ex.check_station_measurement(np.round(right, 2)).message == ROUNDED_HINT
+    fb = ex.check_station_measurement(...)
+    assert not fb.correct and not fb.answered
+
+
+# ---------------------------------------------------------------------------
+# 19.2
+X2, T2 = np.array(_shared.VIS_X), _shared.VIS_T
+
+
+def visible_c(x, t, *, rule="horizon", rotate=True):
+    r = complex(x[0], x[2])
+    out = []
+    for i in range(1, 13):
+        pos, _ = station_c(t, i, rotate=rotate)
+        lhs = ((r - pos) * pos.conjugate()).real if rule == "horizon" else (r * pos.conjugate()).real
+        if lhs > 0:
+            out.append(i)
+    return np.array(out)
+
+
+def test_19_2_accepts_the_ids_of_the_horizon_rule_and_they_are_two():
+    right = visible_c(X2, T2)
+    assert right.tolist() == [11, 12]       # the exercise is built so that station 12's theta is past 2 pi
+    assert ex.check_visible_stations(right).correct
+    assert ex.check_visible_stations(right.tolist()).correct
+
+
+@pytest.mark.parametrize("key", ["zero_based", "position_rule", "no_rotation", "unwrapped", "order", "whole"])
+def test_19_2_names_each_mistake(key):
+    right = visible_c(X2, T2)
+    wrong = {"zero_based": right - 1, "position_rule": visible_c(X2, T2, rule="position"),
+             "no_rotation": visible_c(X2, T2, rotate=False), "order": right[::-1], "whole": right + 0.5}
+    if key == "unwrapped":     # |phi - theta| < pi/2 without wrapping: no station at all here
+        th = WE * T2 + np.arange(12) * math.pi / 6
+        phi = np.array([np.angle(complex(X2[0], X2[2]) - station_c(T2, i)[0]) for i in range(1, 13)])
+        value = np.flatnonzero(np.abs(phi - th) < math.pi / 2) + 1
+        assert value.size == 0
+    else:
+        value = wrong[key]
+    fb = ex.check_visible_stations(value)
+    assert not fb.correct and fb.message == hint("19.2", key), (key, str(fb))
+
+
+# ---------------------------------------------------------------------------
+# 19.3
+def test_19_3_accepts_the_period_of_the_integrated_orbit():
+    n = math.sqrt(MU / R0**3)
+    x0 = np.array([R0, 0.0, 0.0, R0 * n]) + np.array(_shared.PERIOD_DX0)
+
+    def f(_t, x):
+        r3 = math.hypot(x[0], x[2]) ** 3
+        return [x[1], -MU * x[0] / r3, x[3], -MU * x[2] / r3]
+
+    # the period is when the orbit's angle completes one turn (an event of solve_ivp)
+    def full_turn(_t, x):
+        return x[2] if _t > 100 else 1.0
+    full_turn.direction = 1
+    sol = solve_ivp(f, (0, 7000), x0, method="DOP853", rtol=1e-13, atol=1e-10, events=full_turn)
+    T = sol.t_events[0][0]
+    fb = ex.check_perturbed_period(T)
+    assert fb.correct, (T, str(fb))
+
+
+@pytest.mark.parametrize("key", ["nominal", "no_half", "circular_speed", "minutes"])
+def test_19_3_names_each_mistake(key):
+    n = math.sqrt(MU / R0**3)
+    x0 = np.array([R0, 0.0, 0.0, R0 * n]) + np.array(_shared.PERIOD_DX0)
+    v2, r = x0[1] ** 2 + x0[3] ** 2, R0
+    energy = v2 / 2 - MU / r
+    period = lambda a: 2 * math.pi * math.sqrt(a**3 / MU)   # noqa: E731
+    value = {"nominal": 2 * math.pi / n, "no_half": period(-MU / (2 * (v2 - MU / r))),
+             "circular_speed": period(MU / v2), "minutes": period(-MU / (2 * energy)) / 60}[key]
+    fb = ex.check_perturbed_period(value)
+    assert not fb.correct and fb.message == hint("19.3", key), str(fb)
+
+
+def test_every_listed_hint_of_19_is_tested():
+    tested = {"19.1": {"zero_based", "no_rotation", "fixed_station", "reversed", "atan2_order"},
+              "19.2": {"zero_based", "position_rule", "no_rotation", "unwrapped", "order", "whole"},
+              "19.3": {"nominal", "no_half", "circular_speed", "minutes", "radius_a"}}
+    for exercise, keys in tested.items():
+        assert set(ex.EXERCISES[exercise].hints) == keys
+
+
+def test_the_notebook_states_the_exercises_numbers():
+    from pathlib import Path
+    text = (Path(__file__).resolve().parents[1] / "notebooks" / "source" / "19_orbit_nonlinear_model.md").read_text()
+    assert "$x = [-1200,\\ -7.5,\\ 6560,\\ -1.4]^T$" in text and "At $t = 3000$ s" in text and "station 4" in text
+    assert _shared.MEAS_X == (-1200.0, -7.5, 6560.0, -1.4) and _shared.MEAS_T == 3000.0 and _shared.MEAS_STATION == 4
+    assert "$x = [6640,\\ 1.0,\\ -880,\\ 7.7]^T$" in text and "At $t = 9000$ s" in text
+    assert _shared.VIS_X == (6640.0, 1.0, -880.0, 7.7) and _shared.VIS_T == 9000.0
+    assert "$\\delta x_0 = [0,\\ 0.075,\\ 0,\\ -0.021]^T$" in text and _shared.PERIOD_DX0 == (0.0, 0.075, 0.0, -0.021)
+
+
+# ---------------------------------------------------------------------------
+# 20.1
+XA = np.array(_shared.A_X)
+
+
+def f_ct(x):
+    r3 = math.hypot(x[0], x[2]) ** 3
+    return np.array([x[1], -MU * x[0] / r3, x[3], -MU * x[2] / r3])
+
+
+def complex_step_jacobian(fun, x):
+    """Jacobian by complex steps (exact to rounding): Im f(x + i h e_j) / h."""
+    h = 1e-30
+    cols = []
+    for j in range(x.size):
+        z = x.astype(complex)
+        z[j] += 1j * h
+        cols.append(np.imag(fun(z)) / h)
+    return np.stack(cols, axis=-1)
+
+
+def f_complex(x):
+    r3 = np.sqrt(x[0] ** 2 + x[2] ** 2) ** 3
+    return np.array([x[1], -MU * x[0] / r3, x[3], -MU * x[2] / r3])
+
+
+def test_20_1_accepts_the_complex_step_jacobian():
+    A = complex_step_jacobian(f_complex, XA)
+    assert np.allclose(A[[0, 2]], [[0, 1, 0, 0], [0, 0, 0, 1]])
+    fb = ex.check_gravity_jacobian(A)
+    assert fb.correct, str(fb)
+
+
+@pytest.mark.parametrize("key", ["sign", "constant_r", "no_kinematics", "swapped_xy"])
+def test_20_1_names_each_mistake(key):
+    A = complex_step_jacobian(f_complex, XA)
+    X, Y = XA[0], XA[2]
+    r = math.hypot(X, Y)
+    wrong = A.copy()
+    if key == "sign":
+        wrong[[1, 3]] = -A[[1, 3]]
+    elif key == "constant_r":          # d(-mu X / r^3)/dX with r held fixed
+        wrong[1, 0], wrong[1, 2], wrong[3, 0], wrong[3, 2] = -MU / r**3, 0.0, 0.0, -MU / r**3
+    elif key == "no_kinematics":
+        wrong[0, 1] = wrong[2, 3] = 0.0
+    else:
+        wrong[1, 0], wrong[3, 2] = A[3, 2], A[1, 0]
+    fb = ex.check_gravity_jacobian(wrong)
+    assert not fb.correct and fb.message == hint("20.1", key), str(fb)
+
+
+def test_20_1_transposed_and_rounded():
+    A = complex_step_jacobian(f_complex, XA)
+    assert "transposed" in ex.check_gravity_jacobian(A.T).message
+    assert ex.check_gravity_jacobian(np.round(A, 8)).message == ROUNDED_HINT
+
+
+# ---------------------------------------------------------------------------
+# 20.2
+XR, TR, SR = np.array(_shared.ROW_X), _shared.ROW_T, _shared.ROW_STATION
+
+
+def rhodot_complex(x, t=TR, i=SR, **kw):
+    pos, vel = station_c(t, i, **kw)
+    dX, dY = x[0] - pos.real, x[2] - pos.imag
+    dVX, dVY = x[1] - vel.real, x[3] - vel.imag
+    return np.array([(dX * dVX + dY * dVY) / np.sqrt(dX**2 + dY**2)])
+
+
+def test_20_2_accepts_the_complex_step_row():
+    row = complex_step_jacobian(rhodot_complex, XR)[0]
+    fb = ex.check_range_rate_row(row)
+    assert fb.correct, str(fb)
+
+
+@pytest.mark.parametrize("key", ["rho_constant", "station_fixed", "range_row", "velocity_only", "zero_based"])
+def test_20_2_names_each_mistake(key):
+    pos, vel = station_c(TR, SR)
+    dX, dY = XR[0] - pos.real, XR[2] - pos.imag
+    dVX, dVY = XR[1] - vel.real, XR[3] - vel.imag
+    rho = math.hypot(dX, dY)
+    if key == "rho_constant":
+        wrong = np.array([dVX, dX, dVY, dY]) / rho
+    elif key == "station_fixed":
+        def fixed(x):
+            ddX, ddY = x[0] - pos.real, x[2] - pos.imag
+            return np.array([(ddX * x[1] + ddY * x[3]) / np.sqrt(ddX**2 + ddY**2)])
+        wrong = complex_step_jacobian(fixed, XR)[0]
+    elif key == "range_row":
+        wrong = np.array([dX / rho, 0.0, dY / rho, 0.0])
+    elif key == "velocity_only":
+        wrong = np.array([0.0, dX / rho, 0.0, dY / rho])
+    else:
+        wrong = complex_step_jacobian(lambda x: rhodot_complex(x, offset=0), XR)[0]
+    fb = ex.check_range_rate_row(wrong)
+    assert not fb.correct and fb.message == hint("20.2", key), str(fb)
+
+
+# ---------------------------------------------------------------------------
+# 20.3
+def A_nominal():
+    n = math.sqrt(MU / R0**3)
+    return complex_step_jacobian(f_complex, np.array([R0, 0.0, 0.0, R0 * n]))
+
+
+def taylor_expm(M, terms=80):
+    """exp(M) by its series, scaled and squared (another route than scipy's Pade)."""
+    s = 10
+    B = M / 2**s
+    out, term = np.eye(len(M)), np.eye(len(M))
+    for k in range(1, terms):
+        term = term @ B / k
+        out = out + term
+    for _ in range(s):
+        out = out @ out
+    return out
+
+
+def test_20_3_accepts_the_series_exponential():
+    F = taylor_expm(_shared.EXPM_DT * A_nominal())
+    fb = ex.check_expm_F(F)
+    assert fb.correct, str(fb)
+
+
+@pytest.mark.parametrize("key", ["euler", "elementwise", "no_dt", "dt_outside"])
+def test_20_3_names_each_mistake(key):
+    A, dt = A_nominal(), _shared.EXPM_DT
+    with np.errstate(over="ignore"):
+        wrong = {"euler": np.eye(4) + dt * A, "elementwise": np.exp(dt * A), "no_dt": taylor_expm(A),
+                 "dt_outside": dt * taylor_expm(A)}[key]
+    fb = ex.check_expm_F(wrong)
+    assert not fb.correct and fb.message == hint("20.3", key), str(fb)
+
+
+def test_every_listed_hint_of_20_is_tested_and_placeholders_are_unanswered():
+    tested = {"20.1": {"sign", "constant_r", "no_kinematics", "swapped_xy"},
+              "20.2": {"rho_constant", "station_fixed", "range_row", "velocity_only", "zero_based"},
+              "20.3": {"euler", "elementwise", "no_dt", "dt_outside"}}
+    for exercise, keys in tested.items():
+        assert set(ex.EXERCISES[exercise].hints) == keys
+    for check in (ex.check_gravity_jacobian, ex.check_range_rate_row, ex.check_expm_F, ex.check_visible_stations,
+                  ex.check_perturbed_period):
+        fb = check(...)
+        assert not fb.correct and not fb.answered
+
+
+def test_the_notebook_20_states_the_exercises_numbers():
+    from pathlib import Path
+    text = (Path(__file__).resolve().parents[1] / "notebooks" / "source" / "20_orbit_linearization.md").read_text()
+    assert "$x = [5000,\\ -4.0,\\ 4400,\\ 5.0]^T$" in text and _shared.A_X == (5000.0, -4.0, 4400.0, 5.0)
+    assert "station 4 at $t = 3000$ s" in text and "$x = [-1200,\\ -7.5,\\ 6560,\\ -1.4]^T$" in text
+    assert (_shared.ROW_X, _shared.ROW_T, _shared.ROW_STATION) == ((-1200.0, -7.5, 6560.0, -1.4), 3000.0, 4)
+    assert "$\\Delta T$ = 600 s" in text and _shared.EXPM_DT == 600.0
+
+
+@pytest.mark.parametrize("check", [ex.check_station_measurement, ex.check_range_rate_row])
+@pytest.mark.parametrize("setting, name", [({"station": 13}, "station"), ({"station": 0}, "station"),
+                                           ({"t": float("nan")}, "t"), ({"x": [1.0, 2.0]}, "x")])
+def test_bad_settings_raise_valueerror_naming_them(check, setting, name):
+    with pytest.raises(ValueError, match=f"^{name} "):
+        check(np.zeros(3), **setting)
