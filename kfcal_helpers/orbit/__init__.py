@@ -18,6 +18,8 @@ Modules:
   into common slots), proven equal to the per-run filters: :func:`run_batch`, :class:`BatchResult`;
 * :mod:`.montecarlo` -- truth-model tests through the shared Monte Carlo core (:class:`OrbitExperiment`,
   :func:`truth_model_test`), NEES and NIS checked per step with the dof present.
+* :mod:`.exercises` -- the exercise checks of the orbit notebooks (``from kfcal_helpers.orbit.exercises
+  import check_...``).
 
 Not yet registered in :mod:`kfcal_helpers.problems` (no command line, plots or mistakes yet).
 """
