@@ -286,8 +286,8 @@ def discretize(A, dt: float = 10.0, transition: str = "euler") -> np.ndarray:
 
 def rk4_flow(x, dt: float, mu: float, substeps: int, push=None):
     """The RK4 map over ``dt`` (s) in ``substeps`` equal substeps of ``xdot = f(x) + push``, without checks:
-    ``x`` (..., 4) float array, ``push`` (..., 4) a constant added to the derivative (``Gamma w``, the
-    acceleration noise held over the step; default none).  The fast core of :func:`propagate`."""
+    ``x`` (..., 4) float array, ``push`` (..., 4) a constant added to the derivative (``Gamma u``, an
+    acceleration such as a thrust held over the step; default none).  The fast core of :func:`propagate`."""
     h = dt / substeps
     for _ in range(substeps):
         k1 = _f(x, mu, push)

@@ -1,7 +1,8 @@
 """Truth-model tests of the orbit filters: Monte Carlo NEES and NIS through the shared core.
 
-Each run draws ``x_0 ~ N(x0, P0)``, the truth with the acceleration noise ``w_k ~ N(0, Qtrue)`` held over
-each step (integrated by the vectorised RK4 of the simulation by default, or by ``solve_ivp``), and noisy
+Each run draws ``x_0 ~ N(x0, P0)``, the truth of the filters' DT model ``x_{k+1} = f_d(x_k) + Omega w_k`` with
+the acceleration noise ``w_k ~ N(0, Qtrue)`` (``f_d`` the vectorised RK4 of the simulation by default, or
+``solve_ivp``), and noisy
 measurements of the stations that see it (:func:`~kfcal_helpers.orbit.simulation.simulate`),
 then filters them with the batched filters of :mod:`~kfcal_helpers.orbit.batch` (proven equal to the per-run
 filterpy filters in ``tests/test_orbit_batch.py``).  The runs go through :func:`kfcal_helpers.montecarlo.run`

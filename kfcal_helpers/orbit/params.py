@@ -54,8 +54,8 @@ class OrbitParams:
         most :data:`MAX_STEPS`)
     n_stations : stations, equally spaced on the equator (12: station i = 1..12 at angle
         ``omegaE t + (i - 1) 2 pi / n_stations``)
-    Qtrue : (2, 2) covariance of the acceleration noise w_k, (km/s^2)^2, held constant over each step
-        (default ``1e-10 I``)
+    Qtrue : (2, 2) covariance of the acceleration noise w_k, (km/s^2)^2, which enters each step as the
+        velocity change ``Omega w_k = dt Gamma w_k`` (default ``1e-10 I``)
     Rtrue : (3, 3) covariance of one station's measurement noise, [km^2, (km/s)^2, rad^2]
         (default ``diag(0.01, 1, 0.01)``)
     dx0 : (4,) the initial perturbation from the nominal, [km, km/s, km, km/s]

@@ -1,10 +1,13 @@
 """Truth-model simulation of the orbit-determination problem, and logs in the course's format.
 
-Truth: ``x_0 ~ N(x0, P0)``, then over each sample interval ``[t_k, t_k + dt]`` the ODE
-``xdot = f(x) + Gamma w_k`` with the acceleration noise ``w_k ~ N(0, Qtrue)`` (km/s^2) held constant
-over the interval, integrated by ``scipy.integrate.solve_ivp`` (DOP853, ``rtol=1e-12``, ``atol=1e-9``
-km and km/s) with every run of a batch stacked into one ODE.  The filters' DT model of this is
-``x_{k+1} = f_d(x_k) + Omega w_k``, ``Omega = dt Gamma``.
+Truth: ``x_0 ~ N(x0, P0)``, then the filters' DT model ``x_{k+1} = f_d(x_k) + Omega w_k``,
+``Omega = dt Gamma``, with the acceleration noise ``w_k ~ N(0, Qtrue)`` (km/s^2): ``f_d`` the noise-free
+flow of ``xdot = f(x)`` over the sample interval, integrated by ``scipy.integrate.solve_ivp`` (DOP853,
+``rtol=1e-12``, ``atol=1e-9`` km and km/s) with every run of a batch stacked into one ODE, and the noise a
+velocity change ``dt w_k`` at the end of the interval (as in the cooperative-localization problem).  The
+truth so has exactly the per-step noise covariance ``Omega Q Omega^T`` the filters assume; holding ``w_k``
+over the interval would also move the position by ``dt^2 w_k / 2``, a noise the filters do not model, and
+makes their truth-model NEES about 3 % low (``tests/test_orbit_model.py``).
 
 Measurements at t_k (k >= 1; also k = 0 with ``first=True``): for every station that sees the true
 satellite (:func:`~kfcal_helpers.orbit.model.visible`), ``[rho, rhodot, phi] + v``, ``v ~ N(0, Rtrue)``,
@@ -79,7 +82,8 @@ def integrate(x, params: OrbitParams | None = None, w=None, dt: float | None = N
 
 def simulate_truth(params: OrbitParams | None = None, seed=None, n_runs: int | None = None, x0=None,
                    process_noise: bool = True, integrator: str = "solve_ivp") -> np.ndarray:
-    """True states at t_k = k dt, (K, 4) or (n_runs, K, 4) [km, km/s, km, km/s].
+    """True states at t_k = k dt, (K, 4) or (n_runs, K, 4) [km, km/s, km, km/s]:
+    ``x_{k+1} = f_d(x_k) + Omega w_k`` (the module docstring).
 
     seed : int or numpy Generator (advanced by the draws), None for an unseeded one; x0 : (4,) or
     (n_runs, 4) initial states (default: drawn from N(params.x0, params.P0)); process_noise : False for
@@ -94,12 +98,13 @@ def simulate_truth(params: OrbitParams | None = None, seed=None, n_runs: int | N
     w = _gaussian(rng, p.Qtrue, runs + (K - 1,)) if process_noise else np.zeros(runs + (K - 1, N_NOISE))
     x = np.empty(runs + (K, N_STATES))
     x[..., 0, :] = start
-    push = w @ p.Gamma.T  # (..., K - 1, 4)
+    kick = w @ p.Omega.T  # (..., K - 1, 4): Omega w_k, a velocity change dt w_k
     for k in range(K - 1):
         if integrator == "rk4":
-            x[..., k + 1, :] = rk4_flow(x[..., k, :], p.dt, p.mu, RK4_TRUTH_SUBSTEPS, push[..., k, :])
+            flow = rk4_flow(x[..., k, :], p.dt, p.mu, RK4_TRUTH_SUBSTEPS)
         else:
-            x[..., k + 1, :] = integrate(x[..., k, :], p, w[..., k, :])
+            flow = integrate(x[..., k, :], p)
+        x[..., k + 1, :] = flow + kick[..., k, :]
     return x
 
 

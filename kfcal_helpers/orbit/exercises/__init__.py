@@ -1,4 +1,4 @@
-"""Exercise checks of notebooks 19-20 (orbit determination).
+"""Exercise checks of the orbit-determination notebooks (19-21).
 
 Each ``check_<topic>(answer, *, settings...)`` takes the student's answer and returns a
 :class:`~kfcal_helpers.exercises._core.Feedback` whose repr is one line: correct, or a hint at the likely
@@ -18,9 +18,11 @@ exercise   check                                       answer
 20.1       :func:`check_gravity_jacobian`              A = df/dx at a state, (4, 4)
 20.2       :func:`check_range_rate_row`                d rhodot_i/dx of one station, (4,)
 20.3       :func:`check_expm_F`                        F = expm(dT A) on the nominal, (4, 4)
+21.1       :func:`check_nis_step_band`                 one step's NIS band, (2,)
+21.2       :func:`check_two_station_S`                 S of a two-station step, (6, 6)
 =========  ==========================================  ====================================
 
-The checks live one module per lesson (``_19_model``, ``_20_linearization``), each listing its records in ``RECORDS``; this
+The checks live one module per lesson (``_19_model``, ``_20_linearization``, ``_21_lkf``), each listing its records in ``RECORDS``; this
 package re-exports every name, so ``from kfcal_helpers.orbit.exercises import check_...`` is the one
 import path.
 """
@@ -32,8 +34,23 @@ from ._19_model import RECORDS as _19_MODEL_RECORDS
 from ._20_linearization import EXPM_F, GRAVITY_JACOBIAN, RANGE_RATE_ROW, check_expm_F, check_gravity_jacobian, check_range_rate_row  # noqa: F401
 from ._20_linearization import RECORDS as _20_LINEARIZATION_RECORDS
 
+from ._21_lkf import (  # noqa: F401
+    NIS_STEP_BAND,
+    S_PRIOR,
+    S_TIME,
+    STEP_ALPHA,
+    STEP_STATIONS,
+    TWO_STATION_S,
+    check_nis_step_band,
+    check_two_station_S,
+    nis_step_band,
+    step_stations_visible,
+)
+from ._21_lkf import RECORDS as _21_LKF_RECORDS
+
 __all__ = ["EXERCISES", "check_station_measurement", "check_visible_stations", "check_perturbed_period", "check_gravity_jacobian",
-           "check_range_rate_row", "check_expm_F"]
+           "check_range_rate_row", "check_expm_F", "check_nis_step_band", "check_two_station_S",
+           "STEP_STATIONS", "STEP_ALPHA", "S_TIME", "S_PRIOR", "step_stations_visible"]
 
 #: every exercise record of these notebooks, by id (in notebook order)
-EXERCISES = {e.id: e for e in sorted((*_19_MODEL_RECORDS, *_20_LINEARIZATION_RECORDS), key=lambda e: tuple(int(k) for k in e.id.split(".")))}
+EXERCISES = {e.id: e for e in sorted((*_19_MODEL_RECORDS, *_20_LINEARIZATION_RECORDS, *_21_LKF_RECORDS), key=lambda e: tuple(int(k) for k in e.id.split(".")))}
