@@ -3,16 +3,21 @@
 For every calibration mistake of notebook 14 (the correct filter first: its rate is the false-alarm
 rate) and every N in ``DEFAULT_N_RUNS`` (10 ... 1000), ``REPS`` repeated Monte Carlos on the batch
 path, seed ``SEED``: ``kfcal_helpers.calibration.power.detection_rates``.  ``--checks all`` (the default)
-judges each Monte Carlo by the seven checks and writes ``kfcal_helpers/calibration/detection_rates.csv``;
-``--checks assignment --mistakes correct phi02_sign w_is_gps_velocity_var --n-runs 10 20 40 80 160 320 640``
-by the assignment's four alone (``alpha`` split over them), for the correct filter and the two mistakes that
-the seven checks do not catch in every Monte Carlo at N = 10, up to N = 640, and writes ``kfcal_helpers/calibration/detection_rates_assignment.csv``.  The same seeds, so the same Monte Carlos,
-for both.  The table is written after each N (a partial table is a valid table of the N values done so
-far; the repetitions' seeds depend only on (SEED, N, repetition)).  ``tests/test_calibration_power.py``
+judges each Monte Carlo by the seven checks and writes ``kfcal_helpers/calibration/detection_rates.csv``.
+The stored table of the assignment's four checks alone (``alpha`` split over them), for the correct filter
+and the two mistakes that the seven checks do not catch in every Monte Carlo at N = 10, up to N = 640, is
+
+    python benchmarks/detection_rates.py --checks assignment --mistakes correct phi02_sign w_is_gps_velocity_var \
+        --n-runs 10 20 40 80 160 320 640
+
+written to ``kfcal_helpers/calibration/detection_rates_assignment.csv``.  The same seeds, so the same Monte
+Carlos, for both.  The table is written after each N (a partial table is a valid table of the N values done
+so far; the repetitions' seeds depend only on (SEED, N, repetition)).  ``tests/test_calibration_power.py``
 recomputes a subset of each and checks it.  Cost of the seven checks' table: 7 x 8 x 200 = 11,200 Monte
-Carlos, about 50 ms each plus 0.1 ms per realization on an idle core (about 15 minutes; the four checks'
-table, 3 of the 7 rows, about 3/7 of it); the seven checks' table took 33 minutes on a 2-core machine under a load average of 3 to 11.  The load average, the wall time and
-this process's CPU time are printed after each N.
+Carlos, about 50 ms each plus 0.1 ms per realization on an idle core (about 15 minutes); it took 33 minutes
+on a 2-core machine under a load average of 3 to 11.  The four checks' table took 140 s of CPU time (15 minutes
+under a load average of 7 to 9).  The load average, the wall time and this process's CPU time are printed
+after each N.
 """
 
 from __future__ import annotations
