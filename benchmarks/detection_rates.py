@@ -1,25 +1,31 @@
-"""Write the stored detection-rate table of notebook 06b (run: python benchmarks/detection_rates.py).
+"""Write the stored detection-rate tables of notebook 06b (run: python benchmarks/detection_rates.py).
 
 For every calibration mistake of notebook 14 (the correct filter first: its rate is the false-alarm
 rate) and every N in ``DEFAULT_N_RUNS`` (10 ... 1000), ``REPS`` repeated Monte Carlos on the batch
-path, seed ``SEED``: ``kfcal_helpers.calibration.power.detection_rates``.  The table is written to
-``kfcal_helpers/calibration/detection_rates.csv`` after each N (a partial table is a valid table of
-the N values done so far; the repetitions' seeds depend only on (SEED, N, repetition)).
-``tests/test_calibration_power.py`` recomputes a subset of it and checks it.  Cost: 7 x 8 x 200 =
-11,200 Monte Carlos, about 50 ms each plus 0.1 ms per realization on an idle core (about 15 minutes);
-the stored table took 33 minutes on a 2-core machine under a load average of 3 to 11.  The load average
-is printed with the time.
+path, seed ``SEED``: ``kfcal_helpers.calibration.power.detection_rates``.  ``--checks all`` (the default)
+judges each Monte Carlo by the seven checks and writes ``kfcal_helpers/calibration/detection_rates.csv``.
+The stored table of the assignment's four checks alone (``alpha`` split over them), for the correct filter
+and the two mistakes that the seven checks do not catch in every Monte Carlo at N = 10, up to N = 640, is
+
+    python benchmarks/detection_rates.py --checks assignment --mistakes correct phi02_sign w_is_gps_velocity_var \
+        --n-runs 10 20 40 80 160 320 640
+
+written to ``kfcal_helpers/calibration/detection_rates_assignment.csv``.  The same seeds, so the same Monte
+Carlos, for both.  The table is written after each N (a partial table is a valid table of the N values done
+so far; the repetitions' seeds depend only on (SEED, N, repetition)).  ``tests/test_calibration_power.py``
+recomputes a subset of each and checks it.  Cost of the seven checks' table: 7 x 8 x 200 = 11,200 Monte
+Carlos, about 50 ms each plus 0.1 ms per realization on an idle core (about 15 minutes); it took 33 minutes
+on a 2-core machine under a load average of 3 to 11.  The four checks' table took 140 s of CPU time (15 minutes
+under a load average of 7 to 9).  The load average, the wall time and this process's CPU time are printed
+after each N.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import time
 
-import numpy as np
-
-from kfcal_helpers.calibration.power import DEFAULT_N_RUNS, STORED_CSV, DetectionRates, detection_rates
+from kfcal_helpers.calibration.power import DEFAULT_N_RUNS, STORED_ASSIGNMENT_CSV, STORED_CSV, detection_rates
+from kfcal_helpers.power import write_by_n
 
 REPS, SEED = 200, 2026
 
@@ -27,17 +33,19 @@ REPS, SEED = 200, 2026
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--reps", type=int, default=REPS, help=f"repetitions per (mistake, N), default {REPS}")
-    parser.add_argument("--out", default=str(STORED_CSV), help="CSV to write (default: the stored table)")
+    parser.add_argument("--checks", choices=("all", "assignment"), default="all",
+                        help="the seven checks (default) or the assignment's four")
+    parser.add_argument("--mistakes", nargs="+", default=None,
+                        help="the mistakes to run (default: all; the stored table of the four checks holds the correct "
+                             "filter and the two mistakes the seven checks do not catch every time at N = 10)")
+    parser.add_argument("--n-runs", type=int, nargs="+", default=list(DEFAULT_N_RUNS),
+                        help="the realization counts (default: all of DEFAULT_N_RUNS; the stored table of the four "
+                             "checks stops at 640)")
+    parser.add_argument("--out", default=None, help="CSV to write (default: the stored table of --checks)")
     args = parser.parse_args(argv)
-    parts = []
-    start = time.perf_counter()
-    for n in DEFAULT_N_RUNS:
-        parts.append(detection_rates(n_runs=[n], reps=args.reps, seed=SEED))
-        table = DetectionRates(parts[0].mistakes, tuple(p.n_runs[0] for p in parts), args.reps, SEED, parts[0].alpha,
-                               np.concatenate([p.failed for p in parts], axis=1))
-        table.to_csv(args.out)
-        print(f"N = {n:5d} done after {time.perf_counter() - start:.0f} s (load {os.getloadavg()[0]:.1f}); "
-              + ", ".join(f"{m} {r:.2f}" for m, r in zip(table.mistakes, table.rates[:, -1])), flush=True)
+    out = args.out or (STORED_CSV if args.checks == "all" else STORED_ASSIGNMENT_CSV)
+    write_by_n(lambda n: detection_rates(args.mistakes, n_runs=[n], reps=args.reps, seed=SEED, checks=args.checks),
+               args.n_runs, out, log=lambda line: print(line, flush=True))
     return 0
 
 

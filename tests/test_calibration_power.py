@@ -1,17 +1,20 @@
-"""kfcal_helpers.calibration.power: the detection rates of notebook 06b.  The stored table is what
-detection_rates computes (a subset recomputed with the same seeds gives the same failed checks, and
+"""kfcal_helpers.calibration.power: the detection rates of notebook 06b.  Each stored table (the seven
+checks, and the assignment's four as a family of their own) is what detection_rates computes (a subset recomputed with the same seeds gives the same failed checks, and
 with other seeds a rate consistent with the stored one), its CSV round-trips, its bands are the exact
 binomial (Clopper-Pearson) bands, the correct filter's false-alarm rate is consistent with at most
 alpha, and bad arguments raise ValueError naming the argument."""
+
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy import stats
 
-from kfcal_helpers.calibration import CHECK_NAMES, CalibrationParams, run_monte_carlo
+from kfcal_helpers.calibration import ASSIGNMENT_CHECKS, CHECK_NAMES, CalibrationParams, run_monte_carlo
 from kfcal_helpers.calibration.mistakes import MISTAKES, mistaken_model
 from kfcal_helpers.calibration.power import (DEFAULT_N_RUNS, DetectionRates, detection_rates, repetition_seed,
                                              stored_detection_rates)
+from kfcal_helpers.power import write_by_n
 
 
 @pytest.fixture(scope="module")
@@ -19,11 +22,57 @@ def stored():
     return stored_detection_rates()
 
 
+@pytest.fixture(scope="module")
+def stored4():
+    return stored_detection_rates("assignment")
+
+
 def test_stored_table_covers_every_mistake_and_n(stored):
     assert stored.mistakes == tuple(MISTAKES) and stored.mistakes[0] == "correct"
     assert stored.n_runs == DEFAULT_N_RUNS and stored.reps >= 100 and stored.alpha == 0.05
     assert stored.failed.shape == (len(MISTAKES), len(DEFAULT_N_RUNS), stored.reps, len(CHECK_NAMES))
+    assert stored.checks == CHECK_NAMES
     assert np.array_equal(stored.counts, stored.detected.sum(axis=-1))
+
+
+def test_stored_assignment_table_has_the_same_repetitions_judged_by_the_four_checks(stored, stored4):
+    assert ASSIGNMENT_CHECKS == ("mean_error", "covariance", "orthogonality", "residual_independence",
+                                 "residual_variance")
+    assert stored4.checks == ASSIGNMENT_CHECKS
+    assert stored4.mistakes == ("correct", "phi02_sign", "w_is_gps_velocity_var")
+    assert (stored4.n_runs, stored4.reps, stored4.seed, stored4.alpha) == (
+        DEFAULT_N_RUNS[:-1], stored.reps, stored.seed, stored.alpha)
+    # the same Monte Carlos; the four get alpha/5 each instead of alpha/7: each fails at least where it failed
+    # among the seven
+    seven = stored.only(ASSIGNMENT_CHECKS).failed[[stored.mistakes.index(m) for m in stored4.mistakes]]
+    assert np.all(stored4.failed >= seven[:, :len(stored4.n_runs)])
+
+
+def test_the_assignment_subset_recomputed_with_the_same_seeds_gives_the_same_failed_checks(stored4):
+    names, ns, reps = ["correct", "w_is_gps_velocity_var"], [40, 160], 4
+    again = detection_rates(names, ns, reps=reps, seed=stored4.seed, checks="assignment")
+    a = [stored4.mistakes.index(m) for m in names]
+    j = [stored4.n_runs.index(n) for n in ns]
+    assert again.checks == ASSIGNMENT_CHECKS
+    assert np.array_equal(again.failed, stored4.failed[np.ix_(a, j)][:, :, :reps])
+
+
+def test_the_four_checks_are_a_family_of_their_own():
+    # the same Monte Carlo judged by the assignment's four checks alone: alpha is split over their five check
+    # names instead of seven, so their simultaneous bands are narrower; the pointwise bands are the same
+    p = CalibrationParams()
+    mc = run_monte_carlo(p, 40, seed=3, model=mistaken_model(p, "w_is_gps_velocity_var"))
+    seven, four = mc.checks(), mc.checks(ASSIGNMENT_CHECKS)
+    assert tuple(four) == ASSIGNMENT_CHECKS
+    for name in ASSIGNMENT_CHECKS:
+        assert np.array_equal(four[name].lower, seven[name].lower)
+        w4, w7 = four[name].sim_upper - four[name].sim_lower, seven[name].sim_upper - seven[name].sim_lower
+        assert np.all(w4 <= w7) and np.all(w4[w7 > 0] < w7[w7 > 0])      # (a zero-width band stays zero)
+        assert np.allclose(four[name].sim_upper, np.ravel(mc.band(name, 0.05 / 5 / np.size(four[name].statistic))[3]))
+    with pytest.raises(ValueError, match="names"):
+        mc.checks(["nope"])
+    with pytest.raises(ValueError, match="names"):
+        mc.checks([])
 
 
 def test_a_subset_recomputed_with_the_same_seeds_gives_the_same_failed_checks(stored):
@@ -61,7 +110,8 @@ def test_csv_round_trip_and_first(tmp_path, stored):
     path = tmp_path / "rates.csv"
     t.to_csv(path)
     back = DetectionRates.from_csv(path)
-    assert (back.mistakes, back.n_runs, back.reps, back.seed, back.alpha) == (t.mistakes, t.n_runs, 5, t.seed, t.alpha)
+    assert (back.mistakes, back.n_runs, back.reps, back.seed, back.alpha, back.checks) == (
+        t.mistakes, t.n_runs, 5, t.seed, t.alpha, t.checks)
     assert np.array_equal(back.failed, t.failed)
     lines = path.read_text().splitlines()
     fields = lines[1].split(",")
@@ -101,11 +151,28 @@ def test_rate_lookup(stored):
 @pytest.mark.parametrize("kwargs, name", [
     (dict(mistakes=["nope"]), "mistakes"), (dict(mistakes=[]), "mistakes"), (dict(n_runs=[1]), "n_runs"),
     (dict(n_runs=[]), "n_runs"), (dict(reps=0), "reps"), (dict(seed=-1), "seed"), (dict(alpha=1.5), "alpha"),
-    (dict(params="defaults"), "params"),
+    (dict(params="defaults"), "params"), (dict(checks="four"), "checks"),
 ])
 def test_bad_arguments_name_themselves(kwargs, name):
     with pytest.raises(ValueError, match=name):
         detection_rates(**kwargs)
+
+
+def test_only_and_joined(stored):
+    nees = stored.only(["nees"])
+    assert nees.checks == ("nees",) and np.array_equal(nees.failed[..., 0], stored.failed[..., CHECK_NAMES.index("nees")])
+    assert np.array_equal(stored.only(CHECK_NAMES).rates, stored.rates)
+    with pytest.raises(ValueError, match="checks"):
+        stored.only(["nope"])
+    with pytest.raises(ValueError, match="checks"):
+        stored.only([])
+    a = DetectionRates(stored.mistakes, stored.n_runs[:2], stored.reps, stored.seed, stored.alpha,
+                       stored.failed[:, :2], stored.checks)
+    b = DetectionRates(stored.mistakes, stored.n_runs[2:], stored.reps, stored.seed, stored.alpha,
+                       stored.failed[:, 2:], stored.checks)
+    assert np.array_equal(a.joined(b).failed, stored.failed) and a.joined(b).n_runs == stored.n_runs
+    with pytest.raises(ValueError, match="other"):
+        a.joined(b.only(["nees"]))
 
 
 def test_bad_confidence_and_first(stored):
@@ -113,3 +180,33 @@ def test_bad_confidence_and_first(stored):
         stored.band(95)
     with pytest.raises(ValueError, match="reps"):
         stored.first(stored.reps + 1)
+
+
+def test_the_benchmark_script_regenerates_the_stored_tables(tmp_path, stored, stored4):
+    # benchmarks/detection_rates.py with one repetition of two mistakes: the first repetition of the stored rows
+    import runpy
+    main = runpy.run_path(str(Path(__file__).parents[1] / "benchmarks" / "detection_rates.py"))["main"]
+    names = ["correct", "w_is_gps_velocity_var"]
+    for checks, table in (("all", stored), ("assignment", stored4)):
+        out = tmp_path / f"{checks}.csv"
+        assert main(["--reps", "1", "--checks", checks, "--mistakes", *names, "--n-runs", "10", "40",
+                     "--out", str(out)]) == 0
+        again = DetectionRates.from_csv(out)
+        assert again.mistakes == tuple(names) and again.n_runs == (10, 40) and again.checks == table.checks
+        rows = [table.mistakes.index(m) for m in names]
+        assert np.array_equal(again.failed, table.first(1).failed[rows][:, [0, 2]])
+
+
+def test_write_by_n_writes_a_valid_table_after_each_n(tmp_path, stored):
+    path, lines = tmp_path / "t.csv", []
+
+    def compute(n):
+        j = stored.n_runs.index(n)
+        if n == 40:   # the file holds the N values done so far
+            assert DetectionRates.from_csv(path).n_runs == (10, 20)
+        return DetectionRates(stored.mistakes, (n,), stored.reps, stored.seed, stored.alpha,
+                              stored.failed[:, j:j + 1], stored.checks)
+
+    table = write_by_n(compute, [10, 20, 40], path, log=lines.append)
+    assert table.n_runs == (10, 20, 40) and np.array_equal(DetectionRates.from_csv(path).failed, stored.failed[:, :3])
+    assert len(lines) == 3 and lines[-1].startswith("N =    40 done after")
