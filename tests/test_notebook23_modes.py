@@ -1,7 +1,7 @@
 """Notebook 23 is true in every mode it can meet: without KFCAL_ORBIT_LOG (a seeded generated log, the
 committed mode) and with KFCAL_ORBIT_LOG naming another valid log in the course's format (the course's own
 file is not available here: logs written by ``write_log_mat`` / ``write_log_csv`` from other seeds and
-settings stand in for it, among them a 50-step log).  Each run executes the whole notebook in a fresh kernel
+settings stand in for it, among them a 50-step log and a 2-sample log with one update).  Each run executes the whole notebook in a fresh kernel
 (nbclient): every assert of the mode runs, and a failing one fails the test with its cell; no output may
 hold an error, a NaN or a warning, and the lines that carry the log-dependent verdicts must be there."""
 
@@ -71,6 +71,7 @@ def test_without_a_log(monkeypatch):
 LOGS = {
     "another seed (.mat)": lambda: simulate(seed=7).log(),
     "50 steps (.mat)": lambda: simulate(OrbitParams(n_steps=50), seed=3).log(),
+    "2 samples (.mat)": lambda: simulate(OrbitParams(n_steps=1), seed=3).log(),
     "Rtrue x 4, 300 steps (CSV folder)": lambda: simulate(replace(OrbitParams(n_steps=300),
                                                                   Rtrue=4 * OrbitParams().Rtrue), seed=11).log(),
 }
@@ -90,6 +91,8 @@ def test_with_another_valid_log(name, tmp_path, monkeypatch):
     assert read.dof.max() <= 6
     odd = [np.asarray(b).reshape(4, -1) for b in read.ydata]
     assert max(int((b[3] % 2 == 1).sum()) for b in odd) <= 1
+    if log.t.size == 2:         # one update: the thinned logs that keep none say so in one line
+        assert "every 3rd step: no measurement left on this log" in joined
     if log.t.size == 1401:      # a full-length log: the fewer-measurement verdict is that of the text
         assert "on this log: fewer measurements widen the median 2-sigma band" in joined
 
