@@ -111,6 +111,7 @@ SLOW_FIRST = (
     "tests/test_fuzz_cli.py",  # slow tier about 65 s: real processes (signals, streams); the rest about 13 s
     "notebooks/13_coop_log_comparison.ipynb",  # with the next: one unit (SHARED_SCOPES), about 60 s
     "tests/test_notebook13_modes.py",
+    "tests/test_notebook23_modes.py",  # about 40 s: notebook 23 on five logs
     "tests/test_site.py",  # about 45 s: the site build and Chromium
     "tests/test_calibration_memory.py",  # slow tier about 35 s: child processes at the largest runs
     "tests/test_install.py",  # slow tier about 20 s: pip install into a fresh venv

@@ -1,10 +1,11 @@
-"""The slips of the orbit exercises (19.x, 20.x), one row per exercise and slip, in the labels of the other
+"""The slips of the orbit exercises (19.x, 20.x, 23.x), one row per exercise and slip, in the labels of the other
 problems' slip rows: each check, given the right answer with that slip (a units factor, degrees for radians,
 reversed, transposed, one entry off), answers with a hint naming the slip, never "correct"; a units slip names
 the orbit exercises' units (km, km/s), not the harness's SI units.
 
 CONTRIBUTING's table "slips its tests cover" lists, for each orbit exercise, exactly the slips of its rows here.
-The right answers come from tests/test_exercises_orbit.py, which computes them by another route than the checks.
+The right answers come from tests/test_exercises_orbit.py and tests/test_exercises_orbit_23.py, which compute them by
+another route than the checks; the NIS bands of 23.x have no units (no units slip).
 """
 
 import re
@@ -14,13 +15,15 @@ import numpy as np
 import pytest
 
 import test_exercises_orbit as orb
+import test_exercises_orbit_23 as orb23
 from kfcal_helpers.orbit import exercises as ox
 from kfcal_helpers.orbit.exercises import _shared
 
 UNITS, DEGREES, REVERSED, TRANSPOSED, ENTRY = "units", "degrees", "reversed", "transposed", "entry named"
 
 CHECK = {"19.1": ox.check_station_measurement, "19.2": ox.check_visible_stations, "19.3": ox.check_perturbed_period,
-         "20.1": ox.check_gravity_jacobian, "20.2": ox.check_range_rate_row, "20.3": ox.check_expm_F}
+         "20.1": ox.check_gravity_jacobian, "20.2": ox.check_range_rate_row, "20.3": ox.check_expm_F,
+         "23.1": ox.check_log_nis_band, "23.2": ox.check_step_nis_band}
 
 
 def _right():
@@ -32,7 +35,8 @@ def _right():
             "19.3": np.array(2 * np.pi * (a**3 / orb.MU) ** 0.5),
             "20.1": orb.complex_step_jacobian(orb.f_complex, orb.XA),
             "20.2": orb.complex_step_jacobian(orb.rhodot_complex, orb.XR)[0],
-            "20.3": orb.taylor_expm(_shared.EXPM_DT * orb.A_nominal())}
+            "20.3": orb.taylor_expm(_shared.EXPM_DT * orb.A_nominal()),
+            "23.1": orb23.RIGHT_23_1, "23.2": orb23.RIGHT_23_2}
 
 
 RIGHT = _right()
@@ -56,6 +60,9 @@ def _rows():
              ("20.2", REVERSED, r["20.2"][::-1], "your entries are in reverse order"),
              ("20.2", ENTRY, row_off, "only d rhodot/dYdot is off, the rest is right"),
              ("20.3", TRANSPOSED, r["20.3"].T, "your matrix is transposed")]
+    for ex in ("23.1", "23.2"):
+        rows += [(ex, REVERSED, r[ex][::-1], "your entries are in reverse order"),
+                 (ex, ENTRY, r[ex] * [1.0, 1.03], "only the upper bound is off, the rest is right")]
     return rows
 
 

@@ -2,7 +2,7 @@
 
 The checks themselves live with their problem: :mod:`kfcal_helpers.calibration.exercises`
 (notebooks 01-07, 14-17), :mod:`kfcal_helpers.coop.exercises` (08-14, 18) and
-:mod:`kfcal_helpers.orbit.exercises` (19-20).  Each is named
+:mod:`kfcal_helpers.orbit.exercises` (19-20, 23).  Each is named
 ``check_<topic>(answer, *, settings...)``: the student's answer (a number, an array or a function)
 first, every setting keyword-only.  It returns a :class:`Feedback` that shows as one line: correct,
 or a hint at the likely mistake (wrong sign, swapped variances, missing wrap...) without the answer.

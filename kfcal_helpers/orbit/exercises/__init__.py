@@ -1,4 +1,4 @@
-"""Exercise checks of the orbit-determination notebooks (19-21).
+"""Exercise checks of the orbit-determination notebooks (19-21, 23).
 
 Each ``check_<topic>(answer, *, settings...)`` takes the student's answer and returns a
 :class:`~kfcal_helpers.exercises._core.Feedback` whose repr is one line: correct, or a hint at the likely
@@ -20,19 +20,24 @@ exercise   check                                       answer
 20.3       :func:`check_expm_F`                        F = expm(dT A) on the nominal, (4, 4)
 21.1       :func:`check_nis_step_band`                 one step's NIS band, (2,)
 21.2       :func:`check_two_station_S`                 S of a two-station step, (6, 6)
+23.1       :func:`check_log_nis_band`                  time-averaged NIS bounds, dof summed, (2,)
+23.2       :func:`check_step_nis_band`                 one step's NIS bounds, (2,)
 =========  ==========================================  ====================================
 
-The checks live one module per lesson (``_19_model``, ``_20_linearization``, ``_21_lkf``), each listing its records in ``RECORDS``; this
+The checks live one module per lesson (``_19_model``, ``_20_linearization``, ``_21_lkf``, ``_23_log``), each listing its records in ``RECORDS``; this
 package re-exports every name, so ``from kfcal_helpers.orbit.exercises import check_...`` is the one
 import path.
 """
 
 from ._shared import A_X, EXPM_DT, MEAS_STATION, MEAS_T, MEAS_X, PERIOD_DX0, ROW_STATION, ROW_T, ROW_X, VIS_T, VIS_X  # noqa: F401
+from ._shared import LOG_ALPHA, LOG_EMPTY_STEPS, LOG_ONE_STATION, LOG_TWO_STATIONS, LOG_STEP_ALPHA, LOG_STEP_STATIONS  # noqa: F401
 from ._19_model import (PERTURBED_PERIOD, STATION_MEASUREMENT, VISIBLE_STATIONS, check_perturbed_period,  # noqa: F401
                         check_station_measurement, check_visible_stations)
 from ._19_model import RECORDS as _19_MODEL_RECORDS
 from ._20_linearization import EXPM_F, GRAVITY_JACOBIAN, RANGE_RATE_ROW, check_expm_F, check_gravity_jacobian, check_range_rate_row  # noqa: F401
 from ._20_linearization import RECORDS as _20_LINEARIZATION_RECORDS
+from ._23_log import LOG_NIS_BAND, STEP_NIS_BAND, check_log_nis_band, check_step_nis_band  # noqa: F401
+from ._23_log import RECORDS as _23_LOG_RECORDS
 
 from ._21_lkf import (  # noqa: F401
     NIS_STEP_BAND,
@@ -50,7 +55,7 @@ from ._21_lkf import RECORDS as _21_LKF_RECORDS
 
 __all__ = ["EXERCISES", "check_station_measurement", "check_visible_stations", "check_perturbed_period", "check_gravity_jacobian",
            "check_range_rate_row", "check_expm_F", "check_nis_step_band", "check_two_station_S",
-           "STEP_STATIONS", "STEP_ALPHA", "S_TIME", "S_PRIOR", "step_stations_visible"]
+           "STEP_STATIONS", "STEP_ALPHA", "S_TIME", "S_PRIOR", "step_stations_visible", "check_log_nis_band", "check_step_nis_band"]
 
 #: every exercise record of these notebooks, by id (in notebook order)
-EXERCISES = {e.id: e for e in sorted((*_19_MODEL_RECORDS, *_20_LINEARIZATION_RECORDS, *_21_LKF_RECORDS), key=lambda e: tuple(int(k) for k in e.id.split(".")))}
+EXERCISES = {e.id: e for e in sorted((*_19_MODEL_RECORDS, *_20_LINEARIZATION_RECORDS, *_21_LKF_RECORDS, *_23_LOG_RECORDS), key=lambda e: tuple(int(k) for k in e.id.split(".")))}

@@ -58,3 +58,13 @@ def in_km(feedback: Feedback) -> Feedback:
         return feedback
     end = message.find(")", start)
     return replace(feedback, message=message[:start] + KM_UNITS + message[end + 1:])
+
+#: 23.1: a log's updates with one station (3 dof) and with two (6 dof), its steps without a station, and alpha
+LOG_ONE_STATION = 1200
+LOG_TWO_STATIONS = 180
+LOG_EMPTY_STEPS = 20
+LOG_ALPHA = 0.05
+#: 23.2: the stations visible at the step whose NIS band is asked, and alpha
+LOG_STEP_STATIONS = 2
+LOG_STEP_ALPHA = 0.01
+BOUNDS_RTOL = 1e-9  # chi-square bounds: the computed quantiles (no rounding)
