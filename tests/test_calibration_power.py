@@ -140,6 +140,21 @@ def test_false_alarm_rate_of_the_correct_filter_is_consistent_with_at_most_alpha
     assert np.all(lo[0] <= stored.alpha)
 
 
+def test_the_repetitions_only_phi02_sign_fails_fail_the_orthogonality_check_alone(stored):
+    """Notebook 06b: at N = 640 and 1000 the 7 repetitions failed by phi02_sign and not by the correct filter
+    (none the other way) all failed the orthogonality check and no other: a real effect, not chance."""
+    ph, c0 = stored.mistakes.index("phi02_sign"), stored.mistakes.index("correct")
+    orth = np.array(CHECK_NAMES) == "orthogonality"
+    n_only = 0
+    for n in (640, 1000):
+        j = stored.n_runs.index(n)
+        only = stored.detected[ph, j] & ~stored.detected[c0, j]
+        assert not np.any(stored.detected[c0, j] & ~stored.detected[ph, j])
+        assert np.all(stored.failed[ph, j][only] == orth)
+        n_only += int(only.sum())
+    assert n_only == 7
+
+
 def test_rate_lookup(stored):
     assert stored.rate("correct", 10) == stored.rates[0, 0]
     with pytest.raises(ValueError, match="n_runs"):
