@@ -30,6 +30,7 @@ __all__ = [
     "require_finite_array",
     "require_bool",
     "require_text",
+    "require_sequence",
     "describe",
     "checked",
     "optional",
@@ -148,6 +149,14 @@ def require_text(name: str, value) -> str:
     if not isinstance(value, str):
         raise ValueError(f"{name} must be a text (str), got {describe(value)}")
     return value
+
+
+def require_sequence(name: str, value) -> list:
+    """Return ``value``'s items as a list; raise unless it is a list, a tuple or an array of at least one
+    axis (text, a number, None or a mapping is not)."""
+    if not isinstance(value, (list, tuple, np.ndarray)) or (isinstance(value, np.ndarray) and value.ndim == 0):
+        raise ValueError(f"{name} must be a sequence (list, tuple or array), got {describe(value)}")
+    return list(value)
 
 
 def require_finite(name: str, value) -> float:

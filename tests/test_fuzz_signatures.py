@@ -1,4 +1,5 @@
-"""Every exported function (and parameter or log class) of ``kfcal_helpers.calibration`` and ``kfcal_helpers.coop`` and of the shared
+"""Every exported function (and parameter, setup or log class) of ``kfcal_helpers.calibration``, ``kfcal_helpers.coop`` and
+``kfcal_helpers.orbit`` and of the shared
 numeric modules ``kfcal_helpers.consistency`` and ``kfcal_helpers.montecarlo``, called with each argument in
 turn replaced by ``None``, NaN, an int of 10**400 and an array of a wrong shape: it raises ``ValueError`` or
 ``TypeError`` whose one-line message names the argument (never ``AttributeError``, ``IndexError``,
@@ -15,9 +16,10 @@ import warnings
 import numpy as np
 import pytest
 
-from kfcal_helpers import calibration, consistency, coop, montecarlo
+from kfcal_helpers import calibration, consistency, coop, montecarlo, orbit
 from kfcal_helpers.calibration import CalibrationParams
 from kfcal_helpers.coop import CoopParams, FilterSetup
+from kfcal_helpers.orbit import OrbitParams
 
 CP = CalibrationParams(duration=2.0)
 KP = CoopParams(duration=1.0)
@@ -35,6 +37,18 @@ def _calib_run():
 
 def _calib_dz():
     return calibration.simulate(CP, 1, 0).dz[0]
+
+
+OP = OrbitParams(n_steps=4)
+OX = OP.x0
+
+
+def _orbit_sim(n_runs=None):
+    return orbit.simulate(OP, n_runs, 1, first=True, integrator="rk4")
+
+
+def _orbit_setup(filter="ekf"):
+    return orbit.FilterSetup(filter, OP)
 
 
 #: {exported name: a valid call's keyword arguments (built lazily)}; every argument named here is fuzzed
@@ -130,19 +144,61 @@ VALID = {
     "chunk_generators": lambda: dict(chunk=3, n_runs=10, seed=0),
     "estimate": None,
     "run@montecarlo": None,
+    # orbit
+    "BatchResult@orbit": None,  # results the package builds (as are FilterResult, MonteCarloResult and Simulation)
+    "FilterResult@orbit": None,
+    "MonteCarloResult@orbit": None,
+    "Simulation@orbit": None,
+    "run_batch@orbit": lambda: (lambda sim: dict(y=sim.y, setup=_orbit_setup(), truth=sim.truth,
+                                                 keep_estimates=True))(_orbit_sim(2)),
+    "OrbitExperiment@orbit": lambda: dict(setup=_orbit_setup(), n_runs=2, alpha=0.05, every=1, integrator="rk4"),
+    "truth_model_test@orbit": lambda: dict(params=OP, n_runs=2, seed=0, filter="ekf", alpha=0.05, every=1,
+                                           integrator="rk4", workers=1),
+    "FilterSetup@orbit": lambda: dict(filter="ukf", params=OP, Q=OP.Qtrue, R=OP.Rtrue, x0=OP.x0, P0=OP.P0,
+                                      transition="expm", substeps=2, alpha=1.0, beta=2.0, kappa=0.0),
+    "OrbitEKF@orbit": lambda: dict(setup=_orbit_setup()),
+    "run@orbit": lambda: (lambda sim: dict(y=sim.y, setup=_orbit_setup(), truth=sim.truth))(_orbit_sim()),
+    "run_ekf@orbit": lambda: (lambda sim: dict(y=sim.y, setup=_orbit_setup("ekf"), truth=sim.truth))(_orbit_sim()),
+    "run_lkf@orbit": lambda: (lambda sim: dict(y=sim.y, setup=_orbit_setup("lkf"), truth=sim.truth))(_orbit_sim()),
+    "run_ukf@orbit": lambda: (lambda sim: dict(y=sim.y, setup=_orbit_setup("ukf"), truth=sim.truth))(_orbit_sim()),
+    "run_filter@orbit": lambda: (lambda sim: dict(filter="ekf", y=sim.y, params=OP, truth=sim.truth))(_orbit_sim()),
+    "discretize@orbit": lambda: dict(A=orbit.jacobian_A(OX, OP), dt=10.0, transition="euler"),
+    "dynamics@orbit": lambda: dict(x=OX, params=OP, w=np.zeros(2)),
+    "jacobian_A@orbit": lambda: dict(x=OX, params=OP),
+    "jacobian_C@orbit": lambda: dict(x=OX, t=0.0, params=OP),
+    "measure@orbit": lambda: dict(x=OX, t=0.0, params=OP),
+    "nominal_state@orbit": lambda: dict(t=np.array([0.0, 10.0]), params=OP),
+    "nominal_trajectory@orbit": lambda: dict(params=OP, n_samples=3),
+    "propagate@orbit": lambda: dict(x=OX, params=OP, dt=10.0, substeps=2),
+    "station_angles@orbit": lambda: dict(t=np.array([0.0, 10.0]), params=OP),
+    "station_states@orbit": lambda: dict(t=np.array([0.0, 10.0]), params=OP),
+    "visible@orbit": lambda: dict(x=OX, t=0.0, params=OP),
+    "wrap_phi@orbit": lambda: dict(z=np.array([7000.0, 0.1, 4.0])),
+    "OrbitParams@orbit": lambda: dict(n_steps=4),
+    "OrbitLog@orbit": lambda: (lambda lg: dict(t=lg.t, ydata=lg.ydata, Qtrue=lg.Qtrue, Rtrue=lg.Rtrue, n_stations=12,
+                                               truth=lg.truth, source="x"))(_orbit_sim().log()),
+    "from_columns@orbit": lambda: dict(ydata=_orbit_sim().log().ydata, n_stations=12),
+    "integrate@orbit": lambda: dict(x=OX, params=OP, w=np.zeros(2), dt=10.0),
+    "simulate@orbit": lambda: dict(params=OP, n_runs=2, seed=0, every=1, first=False, integrator="rk4"),
+    "simulate_measurements@orbit": lambda: dict(truth=_orbit_sim().truth, params=OP, seed=0, first=False),
+    "simulate_truth@orbit": lambda: dict(params=OP, seed=0, n_runs=2, x0=OX, process_noise=True, integrator="rk4"),
+    "to_columns@orbit": lambda: dict(y=_orbit_sim().y),
 }
 
 #: (name, argument) that take any shape (elementwise), where a wrong shape is a valid call
 ANY_SHAPE = {("wrap_angle", "a"), ("acceleration", "t"), ("integrate_left", "acc"), ("phi_power", "k"), ("inside_fraction", "values"),
              ("t_band", "sd"), ("normal_band", "var"), ("variance_band", "expected"), ("correlation_band", "rho"),
-             ("format_number", "value"), ("arc", "dt")}
+             ("format_number", "value"), ("arc", "dt"),
+             # orbit: times of any shape, broadcast with the states' leading axes
+             ("nominal_state", "t"), ("station_angles", "t"), ("station_states", "t"), ("jacobian_C", "t"),
+             ("measure", "t"), ("visible", "t")}
 #: (name, argument) where NaN is a valid value (a missing measurement)
 NAN_OK = {("run", "y"), ("run_ekf", "y"), ("run_lkf", "y"), ("run_ukf", "y"), ("run_filter", "y"),
           ("fit_q_scale", "y"), ("run_batch", "y"), ("format_number", "value"), ("format_matrix", "matrix"),
           ("format_table", "rows"), ("inside_fraction", "values"),
           # elementwise arithmetic: NaN in, NaN out (a missing value stays missing)
           ("wrap_angle", "a"), ("wrap_state", "x"), ("wrap_measurement", "y"), ("state_add", "x"),
-          ("state_add", "dx"), ("state_residual", "a"), ("state_residual", "b"), ("measurement_residual", "a"),
+          ("state_add", "dx"), ("wrap_phi", "z"), ("state_residual", "a"), ("state_residual", "b"), ("measurement_residual", "a"),
           ("measurement_residual", "b")}
 
 #: functions whose result holds NaN by design (no measurement at step 0)
@@ -161,13 +217,16 @@ BAD_VALUES = {"None": None, "NaN": float("nan"), "10**400": 10**400, "wrong shap
 
 
 #: the problems' parameter and data classes: every field is fuzzed (from the defaults, or a small valid log)
-PARAMS_CLASSES = (CalibrationParams, CoopParams, coop.MeasurementModel, coop.CoopLog)
+PARAMS_CLASSES = (CalibrationParams, CoopParams, coop.MeasurementModel, coop.CoopLog, orbit.OrbitParams,
+                  orbit.OrbitLog, orbit.FilterSetup, orbit.OrbitEKF, orbit.OrbitExperiment, orbit.BatchResult,
+                  orbit.FilterResult, orbit.MonteCarloResult, orbit.Simulation)
 
 
 def _exported():
     out = []
     for module, names in ((calibration, calibration.__all__), (coop, coop.__all__),
-                          (consistency, consistency.__all__), (montecarlo, montecarlo.__all__)):
+                          (consistency, consistency.__all__), (montecarlo, montecarlo.__all__),
+                          (orbit, orbit.__all__)):
         for name in names:
             obj = getattr(module, name)
             if (inspect.isfunction(obj) and not name.startswith("check_")) or obj in PARAMS_CLASSES:
