@@ -11,6 +11,7 @@ from __future__ import annotations
 from .calibration import PROBLEM as CALIBRATION
 from .coop import PROBLEM as COOP
 from .registry import Problem
+from .validation import require_text
 
 __all__ = ["PROBLEMS", "problem", "CALIBRATION", "COOP"]
 
@@ -20,6 +21,7 @@ PROBLEMS: tuple[Problem, ...] = (CALIBRATION, COOP)
 
 def problem(name: str) -> Problem:
     """The problem called ``name`` (ValueError naming the problems there are)."""
+    require_text("problem", name)
     for p in PROBLEMS:
         if p.name == name:
             return p
