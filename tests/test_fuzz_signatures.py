@@ -1,13 +1,17 @@
-"""Every exported function (and parameter, setup or log class) of ``kfcal_helpers.calibration``, ``kfcal_helpers.coop`` and
-``kfcal_helpers.orbit`` and of the shared
-numeric modules ``kfcal_helpers.consistency`` and ``kfcal_helpers.montecarlo``, called with each argument in
-turn replaced by ``None``, NaN, an int of 10**400 and an array of a wrong shape: it raises ``ValueError`` or
-``TypeError`` whose one-line message names the argument (never ``AttributeError``, ``IndexError``,
-``OverflowError``...), or, where that value is valid (``None`` for an argument whose default is ``None``,
-any shape for an elementwise function, NaN for a missing measurement), returns a result without NaN.
+"""Every exported function (and parameter, setup or log class) of the problems ``kfcal_helpers.calibration``,
+``kfcal_helpers.coop`` and ``kfcal_helpers.orbit`` and of the shared modules (``consistency``, ``montecarlo``,
+``angles``, ``files``, ``output``, ``style``, ``progress``, ``problems``, ``mistakes``, ``demos``, ``unscented``,
+``kernels``), called with each argument in turn replaced by ``None``, NaN, an int of 10**400 and an array of a
+wrong shape: it raises ``ValueError`` or ``TypeError`` whose one-line message names the argument (never
+``AttributeError``, ``IndexError``, ``OverflowError``...), or, where that value is valid (``None`` for an argument
+whose default is ``None``, any shape for an elementwise function, NaN for a missing measurement), returns a result
+without NaN.
 Left out: the exercise checks (``check_*``: a one-line verdict, never an error), ``kfcal_helpers.assignments``,
-the command-line entries, the figure, widget and process machinery of the other shared modules, and
-``montecarlo.estimate`` and ``run``, which take an ``Experiment`` (``tests/test_montecarlo_core.py``)."""
+the command-line entries (``cli``, ``figures.add_parser``/``run``: ``tests/test_fuzz_cli.py``), the lecture-figure
+writers of ``figures``, ``process`` (signals and streams of the running process; it imports only the standard
+library), ``kernels.over_ipc`` (starts a server), the widget classes of ``demos``, classes that only hold results
+or registrations (``registry``, ``batching``, the results of each problem), and the inner-loop kernels listed in
+``UNCHECKED_KERNELS``."""
 
 import inspect
 import io
@@ -17,8 +21,8 @@ import warnings
 import numpy as np
 import pytest
 
-from kfcal_helpers import (angles, calibration, consistency, coop, files, montecarlo, orbit, output, problems, progress,
-                           style)
+from kfcal_helpers import (angles, calibration, consistency, coop, demos, files, kernels, mistakes, montecarlo, orbit,
+                           output, problems, progress, style, unscented)
 from kfcal_helpers.calibration import CalibrationParams
 from kfcal_helpers.coop import CoopParams, FilterSetup
 from kfcal_helpers.orbit import OrbitParams
@@ -51,6 +55,24 @@ def _orbit_sim(n_runs=None):
 
 def _orbit_setup(filter="ekf"):
     return orbit.FilterSetup(filter, OP)
+
+
+def _mistake_rows():
+    return mistakes.mistake_table(("correct",), n_runs={"calibration": 2, "coop": 2}, params={"calibration": CP, "coop": KP})
+
+
+def _figure():
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(2.0, 1.5))
+    fig.add_subplot().set_title("t")
+    return fig
+
+
+def _controls():
+    import ipywidgets
+
+    return {"a": ipywidgets.FloatSlider(value=1.0, description="a"), "b": ipywidgets.Checkbox(description="b")}
 
 
 def _orbit_experiment():
@@ -143,7 +165,7 @@ VALID = {
     "nees": lambda: dict(err=np.ones(3), cov=np.eye(3)),
     "nis": lambda: dict(err=np.ones(3), cov=np.eye(3)),
     "inside_fraction": lambda: dict(values=[0.5, 2.0], lower=0.0, upper=1.0),
-    "format_checks": None,  # a dict of Check objects: its rows are in test_consistency_bands.py
+    "format_checks": lambda: dict(checks=_mistake_rows()["correct"].checks),
     # montecarlo (estimate and run take an Experiment: their rows are in test_montecarlo_core.py)
     "default_workers": lambda: dict(),
     "chunk_sizes": lambda: dict(chunk=3, n_runs=10),
@@ -176,6 +198,21 @@ VALID = {
     "progress@progress": lambda: dict(iterable=[1, 2], total=2, desc="d", enabled=False),
     "progress_bar": lambda: dict(total=2, desc="d", enabled=False),
     "problem": lambda: dict(name="coop"),
+    # mistakes
+    "all_mistakes": lambda: dict(),
+    "mistake_table": lambda: dict(mistakes=("correct",), n_runs={"calibration": 2, "coop": 2},
+                                  params={"calibration": CP, "coop": KP}, alpha=0.05),
+    "table_checks": lambda: dict(rows=_mistake_rows()),
+    "format_mistake_table": lambda: dict(rows=_mistake_rows(), checks=None),
+    # demos (the widget classes LiveDemo and CachedBackground are not fuzzed)
+    "new_figure": lambda: dict(figure=None, figsize=(2.0, 1.5)),
+    "figure_png": lambda: dict(fig=_figure(), drawn=False),
+    "smallest_text": lambda: dict(fig=_figure()),
+    "failure_message": lambda: dict(error=ValueError("x")),
+    "describe_controls": lambda: (lambda c: dict(controls=c, values={"a": 2.0}))(_controls()),
+    "require_finite_demo": None,  # takes any object: it checks the arrays its class lists in finite_fields
+    # kernels (over_ipc starts a manager server: not fuzzed)
+    "socket_folder": lambda: dict(),
     # orbit
     "BatchResult@orbit": None,  # results the package builds (as are FilterResult, MonteCarloResult and Simulation)
     "FilterResult@orbit": None,
@@ -246,7 +283,9 @@ ALSO_VALID = {("run_monte_carlo", "seed"): {"None"}, ("truth_model_test", "seed"
               # an array of any shape is iterable
               ("progress", "iterable"): {"wrong shape"}, ("run", "progress"): {"None"},
               # a limit of any size; no argument name (the messages then start with the path)
-              ("read_regular", "limit"): {"10**400"}, ("read_regular", "argname"): {"None"}}
+              ("read_regular", "limit"): {"10**400"}, ("read_regular", "argname"): {"None"},
+              # no figure yet: a new one, of matplotlib's default size when figsize is None
+              ("new_figure", "figure"): {"None"}, ("new_figure", "figsize"): {"None"}}
 
 #: (name, argument): the name its messages use instead (a log's arrays carry the course's variable names)
 SAID_AS = {("CoopLog", "t"): "tvec", ("CoopLog", "y"): "ydata", ("problem", "name"): "problem"}
@@ -266,7 +305,8 @@ def _exported():
                           (consistency, consistency.__all__), (montecarlo, montecarlo.__all__),
                           (orbit, orbit.__all__), (angles, angles.__all__), (files, files.__all__),
                           (output, output.__all__), (style, style.__all__), (progress, progress.__all__),
-                          (problems, problems.__all__)):
+                          (problems, problems.__all__), (mistakes, mistakes.__all__), (demos, demos.__all__),
+                          (unscented, unscented.__all__), (kernels, ("socket_folder",))):
         for name in names:
             if name in UNCHECKED_KERNELS:
                 continue
@@ -278,7 +318,8 @@ def _exported():
 
 #: the filters' inner-loop numeric kernels, exported for the problems' filters but unchecked on purpose: the UKF
 #: calls them per sigma point and step, on arrays its callers have checked
-UNCHECKED_KERNELS = {"wrap_components", "weighted_mean"}
+UNCHECKED_KERNELS = {"wrap_components", "weighted_mean", "robust_sqrt", "batch_sigma_points", "unscented_moments",
+                     "gain_solve", "mT"}
 
 EXPORTED = _exported()
 
