@@ -1,8 +1,8 @@
 """Every exported function (and parameter, setup or log class) of the problems ``kfcal_helpers.calibration``,
 ``kfcal_helpers.coop`` and ``kfcal_helpers.orbit`` and of the shared modules (``consistency``, ``montecarlo``,
 ``angles``, ``files``, ``output``, ``style``, ``progress``, ``problems``, ``mistakes``, ``demos``, ``unscented``,
-``kernels``), called with each argument in turn replaced by ``None``, NaN, an int of 10**400 and an array of a
-wrong shape: it raises ``ValueError`` or ``TypeError`` whose one-line message names the argument (never
+``kernels``), called with each argument in turn replaced by ``None``, NaN, an int of 10**400, an array of a
+wrong shape and a text ("x"): it raises ``ValueError`` or ``TypeError`` whose one-line message names the argument (never
 ``AttributeError``, ``IndexError``, ``OverflowError``...), or, where that value is valid (``None`` for an argument
 whose default is ``None``, any shape for an elementwise function, NaN for a missing measurement), returns a result
 without NaN.
@@ -287,10 +287,18 @@ ALSO_VALID = {("run_monte_carlo", "seed"): {"None"}, ("truth_model_test", "seed"
               # no figure yet: a new one, of matplotlib's default size when figsize is None
               ("new_figure", "figure"): {"None"}, ("new_figure", "figsize"): {"None"}}
 
+#: (name, argument) that take any text: names, messages, descriptions, paths (a string is a valid value there)
+TEXT_OK = {("outage_mask", "name"), ("parse_outage", "name"), ("CoopLog", "source"), ("OrbitLog", "source"),
+           ("truth_model_test", "desc"), ("format_number", "value"), ("dumps_json", "obj"), ("named", "path"),
+           ("require_printable", "name"), ("require_printable", "text"), ("path_text", "path"),
+           ("progress", "iterable"), ("progress", "desc"), ("progress_bar", "desc"), ("run", "desc"),
+           *((f, a) for f in ("estimate", "run") for a in ("runs_name", "params_name", "what", "scenario_advice")),
+           *(("read_regular", a) for a in ("argname", "regular_only", "too_large"))}
+
 #: (name, argument): the name its messages use instead (a log's arrays carry the course's variable names)
 SAID_AS = {("CoopLog", "t"): "tvec", ("CoopLog", "y"): "ydata", ("problem", "name"): "problem"}
 
-BAD_VALUES = {"None": None, "NaN": float("nan"), "10**400": 10**400, "wrong shape": np.zeros((2, 3, 7))}
+BAD_VALUES = {"None": None, "NaN": float("nan"), "10**400": 10**400, "wrong shape": np.zeros((2, 3, 7)), "text": "x"}
 
 
 #: the problems' parameter and data classes: every field is fuzzed (from the defaults, or a small valid log)
@@ -362,7 +370,8 @@ def test_bad_argument_is_named(key, fn, arg, label):
     kwargs[arg] = BAD_VALUES[label]
     name = key.split("@")[0]
     allowed = ((label == "None" and default is None) or (label == "wrong shape" and (name, arg) in ANY_SHAPE)
-               or (label == "NaN" and (name, arg) in NAN_OK) or label in ALSO_VALID.get((name, arg), ()))
+               or (label == "NaN" and (name, arg) in NAN_OK) or (label == "text" and (name, arg) in TEXT_OK)
+               or label in ALSO_VALID.get((name, arg), ()))
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error")
