@@ -1,17 +1,16 @@
 """Every exported function (and parameter, setup or log class) of the problems ``kfcal_helpers.calibration``,
 ``kfcal_helpers.coop`` and ``kfcal_helpers.orbit`` and of the shared modules (``consistency``, ``montecarlo``,
-``angles``, ``files``, ``output``, ``style``, ``progress``, ``problems``, ``mistakes``, ``demos``, ``unscented``,
-``kernels``), called with each argument in turn replaced by ``None``, NaN, an int of 10**400, an array of a
-wrong shape and a text ("x"): it raises ``ValueError`` or ``TypeError`` whose one-line message names the argument (never
-``AttributeError``, ``IndexError``, ``OverflowError``...), or, where that value is valid (``None`` for an argument
-whose default is ``None``, any shape for an elementwise function, NaN for a missing measurement), returns a result
-without NaN.
-Left out: the exercise checks (``check_*``: a one-line verdict, never an error), ``kfcal_helpers.assignments``,
-the command-line entries (``cli``, ``figures.add_parser``/``run``: ``tests/test_fuzz_cli.py``), the lecture-figure
-writers of ``figures``, ``process`` (signals and streams of the running process; it imports only the standard
-library), ``kernels.over_ipc`` (starts a server), the widget classes of ``demos``, classes that only hold results
-or registrations (``registry``, ``batching``, the results of each problem), and the inner-loop kernels listed in
-``UNCHECKED_KERNELS``."""
+``angles``, ``files``, ``output``, ``style``, ``progress``, ``problems``, ``mistakes``, ``demos``, ``figures``,
+``unscented``, ``kernels``), called with each argument in turn replaced by ``None``, NaN, an int of 10**400, an
+array of a wrong shape and a text ("x"): it raises ``ValueError`` or ``TypeError`` whose one-line message names the
+argument (never ``AttributeError``, ``IndexError``, ``OverflowError``...), or, where that value is valid (``None``
+for an argument whose default is ``None``, any shape for an elementwise function, NaN for a missing measurement, a
+text for a name or a path), returns a result without NaN.
+Left out: the exercise checks (``check_*``: a one-line verdict, never an error), ``kfcal_helpers.assignments``, the
+command-line entries (``cli``, ``figures.add_parser`` and ``figures.run``: ``tests/test_fuzz_cli.py``), ``process``
+(signals and streams of the running process; it imports only the standard library), ``kernels.over_ipc`` (starts a
+server), the widget classes of ``demos``, classes that only hold results or registrations (``registry``,
+``batching``, the results of each problem), and the inner-loop kernels listed in ``UNCHECKED_KERNELS``."""
 
 import inspect
 import io
@@ -21,8 +20,8 @@ import warnings
 import numpy as np
 import pytest
 
-from kfcal_helpers import (angles, calibration, consistency, coop, demos, files, kernels, mistakes, montecarlo, orbit,
-                           output, problems, progress, style, unscented)
+from kfcal_helpers import (angles, calibration, consistency, coop, demos, figures, files, kernels, mistakes, montecarlo,
+                           orbit, output, problems, progress, style, unscented)
 from kfcal_helpers.calibration import CalibrationParams
 from kfcal_helpers.coop import CoopParams, FilterSetup
 from kfcal_helpers.orbit import OrbitParams
@@ -59,6 +58,12 @@ def _orbit_setup(filter="ekf"):
 
 def _mistake_rows():
     return mistakes.mistake_table(("correct",), n_runs={"calibration": 2, "coop": 2}, params={"calibration": CP, "coop": KP})
+
+
+def _folder():
+    import tempfile
+
+    return tempfile.mkdtemp(prefix="kfcal-fuzz-")
 
 
 def _figure():
@@ -211,6 +216,11 @@ VALID = {
     "failure_message": lambda: dict(error=ValueError("x")),
     "describe_controls": lambda: (lambda c: dict(controls=c, values={"a": 2.0}))(_controls()),
     "require_finite_demo": None,  # takes any object: it checks the arrays its class lists in finite_fields
+    # figures (the cheapest lecture figure, written to a fresh temporary folder)
+    "all_figures": lambda: dict(),
+    "save_figures": lambda: dict(figures=figures.all_figures()[:1], directory=_folder(), data=None, svg=False,
+                                 argname="directory"),
+    "write_figures": lambda: dict(directory=_folder(), svg=False, names=[figures.all_figures()[0].name], data=None),
     # kernels (over_ipc starts a manager server: not fuzzed)
     "socket_folder": lambda: dict(),
     # orbit
@@ -293,7 +303,8 @@ TEXT_OK = {("outage_mask", "name"), ("parse_outage", "name"), ("CoopLog", "sourc
            ("require_printable", "name"), ("require_printable", "text"), ("path_text", "path"),
            ("progress", "iterable"), ("progress", "desc"), ("progress_bar", "desc"), ("run", "desc"),
            *((f, a) for f in ("estimate", "run") for a in ("runs_name", "params_name", "what", "scenario_advice")),
-           *(("read_regular", a) for a in ("argname", "regular_only", "too_large"))}
+           *(("read_regular", a) for a in ("argname", "regular_only", "too_large")),
+           ("save_figures", "directory"), ("save_figures", "argname"), ("write_figures", "directory")}
 
 #: (name, argument): the name its messages use instead (a log's arrays carry the course's variable names)
 SAID_AS = {("CoopLog", "t"): "tvec", ("CoopLog", "y"): "ydata", ("problem", "name"): "problem"}
@@ -314,7 +325,8 @@ def _exported():
                           (orbit, orbit.__all__), (angles, angles.__all__), (files, files.__all__),
                           (output, output.__all__), (style, style.__all__), (progress, progress.__all__),
                           (problems, problems.__all__), (mistakes, mistakes.__all__), (demos, demos.__all__),
-                          (unscented, unscented.__all__), (kernels, ("socket_folder",))):
+                          (unscented, unscented.__all__), (kernels, ("socket_folder",)),
+                          (figures, ("all_figures", "save_figures", "write_figures"))):
         for name in names:
             if name in UNCHECKED_KERNELS:
                 continue
@@ -362,7 +374,8 @@ def _has_nan(value) -> bool:
 
 
 @pytest.mark.parametrize("key, fn, arg, label", list(_cases()))
-def test_bad_argument_is_named(key, fn, arg, label):
+def test_bad_argument_is_named(key, fn, arg, label, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # a text as a path ("x") is a valid folder, written here
     kwargs = VALID[key]()
     default = inspect.signature(fn).parameters[arg].default
     if arg not in kwargs and default is inspect.Parameter.empty:
