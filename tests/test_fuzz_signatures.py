@@ -171,6 +171,8 @@ VALID = {
     "nis": lambda: dict(err=np.ones(3), cov=np.eye(3)),
     "inside_fraction": lambda: dict(values=[0.5, 2.0], lower=0.0, upper=1.0),
     "format_checks": lambda: dict(checks=_mistake_rows()["correct"].checks),
+    "Check": lambda: dict(name="nees", description="d", statistic=np.ones(3), expected=np.ones(3), lower=np.zeros(3),
+                          upper=np.full(3, 2.0), sim_lower=np.zeros(3), sim_upper=np.full(3, 3.0)),
     # montecarlo (estimate and run take an Experiment: their rows are in test_montecarlo_core.py)
     "default_workers": lambda: dict(),
     "chunk_sizes": lambda: dict(chunk=3, n_runs=10),
@@ -304,7 +306,8 @@ TEXT_OK = {("outage_mask", "name"), ("parse_outage", "name"), ("CoopLog", "sourc
            ("progress", "iterable"), ("progress", "desc"), ("progress_bar", "desc"), ("run", "desc"),
            *((f, a) for f in ("estimate", "run") for a in ("runs_name", "params_name", "what", "scenario_advice")),
            *(("read_regular", a) for a in ("argname", "regular_only", "too_large")),
-           ("save_figures", "directory"), ("save_figures", "argname"), ("write_figures", "directory")}
+           ("save_figures", "directory"), ("save_figures", "argname"), ("write_figures", "directory"),
+           ("Check", "name"), ("Check", "description")}
 
 #: (name, argument): the name its messages use instead (a log's arrays carry the course's variable names)
 SAID_AS = {("CoopLog", "t"): "tvec", ("CoopLog", "y"): "ydata", ("problem", "name"): "problem"}
@@ -315,7 +318,8 @@ BAD_VALUES = {"None": None, "NaN": float("nan"), "10**400": 10**400, "wrong shap
 #: the problems' parameter and data classes: every field is fuzzed (from the defaults, or a small valid log)
 PARAMS_CLASSES = (CalibrationParams, CoopParams, coop.MeasurementModel, coop.CoopLog, orbit.OrbitParams,
                   orbit.OrbitLog, orbit.FilterSetup, orbit.OrbitEKF, orbit.OrbitExperiment, orbit.BatchResult,
-                  orbit.FilterResult, orbit.MonteCarloResult, orbit.Simulation, FilterSetup, angles.AngleLayout)
+                  orbit.FilterResult, orbit.MonteCarloResult, orbit.Simulation, FilterSetup, angles.AngleLayout,
+                  consistency.Check)
 
 
 def _exported():
