@@ -186,17 +186,17 @@ def station_states(t, params: OrbitParams | None = None) -> np.ndarray:
     """States ``[Xi, Xidot, Yi, Yidot]`` (km, km/s) of the stations at times ``t`` (s, any shape), shape
     t.shape + (n_stations, 4): ``Xi = RE cos theta_i``, ``Xidot = -RE omegaE sin theta_i``, and so on."""
     p = params_or_default(params)
-    th = station_angles(t, p)
+    th = station_angles.__wrapped__(t, p)  # t is checked already
     c, s = np.cos(th), np.sin(th)
     return np.stack([p.RE * c, -p.RE * p.omegaE * s, p.RE * s, p.RE * p.omegaE * c], axis=-1)
 
 
 def relative_states(x, t, params: OrbitParams | None = None):
     """Satellite minus stations, ``d = x - x_i`` (..., n_stations, 4), and the station states, for states
-    ``x`` (..., 4) (not checked) at times ``t`` (s) broadcast with x's leading axes: the stations are computed
-    once per distinct time (shape t.shape + (n_stations, 4)) and broadcast."""
+    ``x`` (..., 4) at times ``t`` (s) broadcast with x's leading axes (neither checked: the filters' inner loop):
+    the stations are computed once per distinct time (shape t.shape + (n_stations, 4)) and broadcast."""
     p = params_or_default(params)
-    st = station_states(t, p)
+    st = station_states.__wrapped__(t, p)
     return np.asarray(x, dtype=float)[..., None, :] - st, st
 
 
