@@ -12,7 +12,8 @@ from __future__ import annotations
 
 from .consistency import Check
 from .registry import MistakeRow
-from .validation import checked, optional, require_choice, require_probability, require_sequence, require_text
+from .validation import (checked, optional, require_choice, require_iterable, require_probability, require_sequence,
+                         require_text)
 
 __all__ = ["MistakeRow", "all_mistakes", "mistake_table", "format_mistake_table", "table_checks"]
 
@@ -67,7 +68,7 @@ def mistake_table(mistakes=None, n_runs=None, params=None, alpha: float = 0.05) 
     elif isinstance(mistakes, str):
         mistakes = (mistakes,)
     else:
-        mistakes = require_sequence("mistakes", mistakes)
+        mistakes = require_iterable("mistakes", mistakes)
     out = {}
     for mistake in mistakes:
         mistake = require_choice("mistakes", mistake, tuple(owners))

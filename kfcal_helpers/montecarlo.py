@@ -44,6 +44,7 @@ from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -195,11 +196,7 @@ class Estimate:
 _TEXTS = dict.fromkeys(("runs_name", "params_name", "what", "scenario_advice"), require_text)
 
 
-def _experiment(name, value):
-    return require_instance(name, value, Experiment)
-
-
-@checked(experiment=_experiment, workers=optional(require_workers), extra_bytes=require_nonnegative, **_TEXTS)
+@checked(experiment=partial(require_instance, cls=Experiment), workers=optional(require_workers), extra_bytes=require_nonnegative, **_TEXTS)
 def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *, extra_bytes: float = 0.0,
              runs_name: str = "n_runs", params_name: str = "params", what: str = "one realization",
              scenario_advice: str = "use a smaller scenario") -> Estimate:
@@ -240,7 +237,7 @@ def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *,
     return Estimate(peak, seconds, chunk, n_chunks, in_flight)
 
 
-@checked(experiment=_experiment, workers=optional(require_workers), progress=optional(require_bool), desc=require_text,
+@checked(experiment=partial(require_instance, cls=Experiment), workers=optional(require_workers), progress=optional(require_bool), desc=require_text,
          extra_bytes=require_nonnegative, **_TEXTS)
 def run(experiment: Experiment, n_runs: int, seed=0, *, workers: int | None = None, progress: bool | None = False,
         desc: str = "Monte Carlo", extra_bytes: float = 0.0, runs_name: str = "n_runs",
