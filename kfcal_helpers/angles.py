@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .validation import checked, require_array
+from .validation import MAX_SEED, checked, require_array, require_int, require_sequence, require_text
 
 __all__ = ["TWO_PI", "wrap_angle", "angle_slice", "wrap_components", "weighted_mean", "AngleLayout"]
 
@@ -26,6 +26,11 @@ def wrap_angle(a):
     return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), TWO_PI)
 
 
+def _indices(name, value) -> list:
+    return [require_int(name, i) for i in require_sequence(name, value)]
+
+
+@checked(angles=_indices)
 def angle_slice(angles) -> slice:
     """The angle components ``angles`` (sorted indices) as a basic slice (start, stop, step); ValueError
     unless they are evenly spaced."""
@@ -76,7 +81,10 @@ class AngleLayout:
     labels: tuple = ()
 
     def __post_init__(self):
-        angles = tuple(int(i) for i in self.angles)
+        require_int("n", self.n, minimum=1, maximum=MAX_SEED)
+        for label in require_sequence("labels", self.labels):
+            require_text("labels", label)
+        angles = tuple(_indices("angles", self.angles))
         if angles != tuple(sorted(set(angles))) or any(not 0 <= i < self.n for i in angles):
             raise ValueError(f"angles must be sorted distinct indices in 0..{self.n - 1}, got {self.angles}")
         object.__setattr__(self, "angles", angles)

@@ -33,7 +33,7 @@ import numpy as np
 from scipy import stats
 
 from .validation import (MAX_SEED, MIN_BAND_ALPHA, checked, describe, require_array, require_finite_array,
-                         require_int, require_significance)
+                         require_int, require_significance, require_text)
 
 __all__ = ["chi2_bounds", "chi2_sum_bounds", "step_checks", "t_band", "normal_band", "variance_band", "correlation_band", "uncentred_correlation_band",
            "normalized_squares", "nees", "nis", "inside_fraction", "Check", "MonteCarloSummary", "format_checks"]
@@ -298,8 +298,13 @@ class Check:
     worst: float = field(init=False)
 
     def __post_init__(self):
-        arrays = [np.ravel(a) for a in (self.statistic, self.expected, self.lower, self.upper,
-                                       self.sim_lower, self.sim_upper)]
+        require_text("name", self.name)
+        require_text("description", self.description)
+        names = ("statistic", "expected", "lower", "upper", "sim_lower", "sim_upper")
+        arrays = [np.ravel(require_finite_array(n, getattr(self, n))) for n in names]
+        for n, a in zip(names[1:], arrays[1:]):
+            if a.size != arrays[0].size:
+                raise ValueError(f"{n} must have one entry per entry of statistic ({arrays[0].size}), got {a.size}")
         self.statistic, self.expected, self.lower, self.upper, self.sim_lower, self.sim_upper = arrays
         s, c, lo, hi, slo, shi = arrays
         self.inside_fraction = float(np.mean((s >= lo) & (s <= hi)))

@@ -14,6 +14,7 @@ positive definiteness) shows a one-line message in the image's place, never a tr
 from __future__ import annotations
 
 import io
+from functools import partial
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -22,6 +23,8 @@ from matplotlib.axes import Axes
 from matplotlib.axis import Axis
 from matplotlib.figure import Figure
 from matplotlib.ticker import FixedFormatter, FixedLocator
+
+from .validation import checked, optional, require_bool, require_finite_array, require_instance
 
 __all__ = ["NOTEBOOK_WIDTH_PX", "MIN_TEXT_PX", "new_figure", "figure_png", "smallest_text", "CachedBackground", "DEMO_FAILURES", "require_finite_demo",
            "failure_message", "describe_controls", "LiveDemo"]
@@ -35,6 +38,17 @@ NOTEBOOK_WIDTH_PX = 833
 MIN_TEXT_PX = 10.0
 
 
+_a_dict = partial(require_instance, cls=dict)
+
+
+def _figsize(name, value):
+    size = require_finite_array(name, value, shape=(2,))
+    if not (size > 0).all():
+        raise ValueError(f"{name} must be (width, height) in inches, both > 0, got {tuple(size.tolist())}")
+    return tuple(size.tolist())
+
+
+@checked(figsize=optional(_figsize))
 def new_figure(figure, figsize):
     """``figure`` if given (a matplotlib Figure; given an Agg canvas if it has none that can
     render), else a new pyplot figure of ``figsize`` inches."""
@@ -48,6 +62,7 @@ def new_figure(figure, figsize):
     return figure
 
 
+@checked(drawn=require_bool)
 def figure_png(fig, *, drawn: bool = False) -> bytes:
     """The figure rendered once by Agg and encoded as an RGB PNG with light compression, for an
     ``ipywidgets.Image`` (about twice as fast as ``savefig``, which renders again for the tight
@@ -254,6 +269,7 @@ def require_finite_demo(demo) -> None:
             raise ValueError(f"the result is not finite ({name} holds inf or NaN): the filter diverged")
 
 
+@checked(error=partial(require_instance, cls=BaseException))
 def failure_message(error: BaseException) -> str:
     """One line that says why a redraw failed, for the figure area of a live demo."""
     text = " ".join(str(error).split()) or type(error).__name__
@@ -274,6 +290,8 @@ def _format_value(value) -> str:
     return str(value)
 
 
+@checked(controls=_a_dict,
+         values=optional(_a_dict))
 def describe_controls(controls: dict, values: dict | None = None) -> str:
     """Settings of ``controls`` in one line (``values`` by name, default the controls' own):
     ``description value`` for every control that is not a checkbox, then the descriptions of the

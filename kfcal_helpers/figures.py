@@ -20,7 +20,7 @@ from . import problems, slides
 from .output import path_text
 from .registry import LectureFigure
 from .slides import check_directory, save_atomic, use_agg_backend
-from .validation import require_choice
+from .validation import checked, require_bool, require_choice, require_instance, require_path, require_sequence, require_text
 
 __all__ = ["LectureFigure", "all_figures", "check_directory", "save_atomic", "save_figures", "write_figures",
            "use_agg_backend", "add_parser", "run"]
@@ -60,11 +60,25 @@ def _select(names, argname: str) -> tuple:
     return tuple(by_name[n] for n in dict.fromkeys(names))
 
 
+def _entries(name: str, figures) -> tuple:
+    return tuple(require_instance(name, entry, LectureFigure) for entry in require_sequence(name, figures))
+
+
+def _check_data(figures, data) -> None:
+    """``data`` must be the figure data of the problem of every entry of ``figures`` (its ``figure_data()``'s type)."""
+    owners = {name: problem for name, (problem, _) in _registry().items()}
+    for problem in {owners[e.name].name: owners[e.name] for e in figures if e.name in owners}.values():
+        if problem.figure_data is not None:
+            require_instance("data", data, type(problem.figure_data()))
+
+
+@checked(figures=_entries, directory=require_path, svg=require_bool, argname=require_text)
 def save_figures(figures, directory, data=None, svg: bool = False, argname: str = "directory") -> list[Path]:
     """:func:`kfcal_helpers.slides.save_figures` of ``figures``, drawn from ``data`` when given, else
     each from its own problem's ``figure_data()`` (made once per problem, ValueError if a figure is
     not registered)."""
     if data is not None:
+        _check_data(figures, data)
         return slides.save_figures(figures, directory, data, svg=svg, argname=argname)
     owners = {name: problem for name, (problem, _) in _registry().items()}
     made = {}
@@ -82,6 +96,7 @@ def save_figures(figures, directory, data=None, svg: bool = False, argname: str 
     return slides.save_figures(figures, directory, svg=svg, argname=argname, data_for=data_for)
 
 
+@checked(directory=require_path, svg=require_bool)
 def write_figures(directory, svg: bool = False, names=None, data=None) -> list[Path]:
     """Write the lecture figures of every problem (:func:`all_figures`) to ``directory`` (created if needed).
 

@@ -12,6 +12,9 @@ from __future__ import annotations
 
 import os
 import stat
+from functools import partial
+
+from .validation import checked, optional, require_int, require_path, require_text
 
 __all__ = ["file_kind", "named", "read_regular"]
 
@@ -19,11 +22,13 @@ _KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character de
           (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"), (stat.S_ISDIR, "a directory"))
 
 
+@checked(mode=partial(require_int, minimum=0, maximum=2**32 - 1))  # st_mode: a 32-bit unsigned int
 def file_kind(mode: int) -> str:
     """What a file of ``st_mode`` ``mode`` is, for a message ("a FIFO (named pipe)", "a directory", ...)."""
     return next((text for test, text in _KINDS if test(mode)), "not a regular file")
 
 
+@checked(path=require_path)
 def named(path) -> str:
     """``path``, and the file it links to if it is a link (for messages)."""
     try:
@@ -39,6 +44,8 @@ def _nonblocking(path, flags):
     return os.open(path, flags | getattr(os, "O_NONBLOCK", 0))
 
 
+@checked(path=require_path, limit=partial(require_int, minimum=0), argname=optional(require_text),
+         regular_only=require_text, too_large=require_text)
 def read_regular(path, limit: int, *, argname: str | None, regular_only: str, too_large: str) -> bytes:
     """The bytes of the regular file ``path`` (links resolved), at most ``limit`` of them.
 

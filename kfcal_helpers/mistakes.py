@@ -12,7 +12,8 @@ from __future__ import annotations
 
 from .consistency import Check
 from .registry import MistakeRow
-from .validation import require_choice, require_probability
+from .validation import (checked, optional, require_choice, require_iterable, require_probability, require_sequence,
+                         require_text)
 
 __all__ = ["MistakeRow", "all_mistakes", "mistake_table", "format_mistake_table", "table_checks"]
 
@@ -66,6 +67,8 @@ def mistake_table(mistakes=None, n_runs=None, params=None, alpha: float = 0.05) 
         mistakes = tuple(owners)
     elif isinstance(mistakes, str):
         mistakes = (mistakes,)
+    else:
+        mistakes = require_iterable("mistakes", mistakes)
     out = {}
     for mistake in mistakes:
         mistake = require_choice("mistakes", mistake, tuple(owners))
@@ -75,6 +78,17 @@ def mistake_table(mistakes=None, n_runs=None, params=None, alpha: float = 0.05) 
     return out
 
 
+def _rows(name: str, rows) -> dict:
+    if not isinstance(rows, dict) or not rows or not all(isinstance(r, MistakeRow) for r in rows.values()):
+        raise ValueError(f"{name} must be a non-empty dict mistake -> MistakeRow, as mistake_table() returns")
+    return rows
+
+
+def _check_names(name: str, checks) -> tuple:
+    return tuple(require_text(name, c) for c in require_sequence(name, checks))
+
+
+@checked(rows=_rows)
 def table_checks(rows: dict) -> tuple:
     """The check names of ``rows`` (dict mistake -> MistakeRow), in order of first appearance."""
     return tuple(dict.fromkeys(name for row in rows.values() for name in row.checks))
@@ -86,12 +100,11 @@ def _cell(check: Check | None) -> str:
     return f"{'pass' if check.passed else 'FAIL'} {check.worst:.3g}"
 
 
+@checked(rows=_rows, checks=optional(_check_names))
 def format_mistake_table(rows: dict, checks=None) -> str:
     """Fixed-width text table: one row per mistake, one column per check (default
     :func:`table_checks`), each cell "pass w" or "FAIL w" with w = worst deviation / its
     simultaneous bound (> 1 fails), "-" where the check does not apply."""
-    if not isinstance(rows, dict) or not rows or not all(isinstance(r, MistakeRow) for r in rows.values()):
-        raise ValueError("rows must be a non-empty dict mistake -> MistakeRow, as mistake_table() returns")
     checks = table_checks(rows) if checks is None else tuple(checks)
     width = max(len("mistake"), *(len(m) for m in rows))
     cols = [max(len(c), 12) for c in checks]

@@ -44,12 +44,14 @@ from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from .progress import progress_bar
-from .validation import MAX_COUNT, require_int, require_seed
+from .validation import (MAX_COUNT, checked, optional, require_bool, require_instance, require_int, require_nonnegative,
+                         require_seed, require_text, require_workers)
 
 __all__ = ["MEMORY_LIMIT", "MAX_SECONDS", "Experiment", "Chunk", "Cancelled", "Estimate", "default_workers",
            "chunk_sizes", "chunk_generators", "estimate", "run"]
@@ -191,6 +193,10 @@ class Estimate:
         return self.peak_bytes <= MEMORY_LIMIT and self.seconds <= MAX_SECONDS
 
 
+_TEXTS = dict.fromkeys(("runs_name", "params_name", "what", "scenario_advice"), require_text)
+
+
+@checked(experiment=partial(require_instance, cls=Experiment), workers=optional(require_workers), extra_bytes=require_nonnegative, **_TEXTS)
 def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *, extra_bytes: float = 0.0,
              runs_name: str = "n_runs", params_name: str = "params", what: str = "one realization",
              scenario_advice: str = "use a smaller scenario") -> Estimate:
@@ -202,7 +208,7 @@ def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *,
     than the 500 MB allowed; {scenario_advice}"``, ``what`` describing one realization), naming
     ``runs_name`` when ``n_runs`` realizations need too much memory or more than :data:`MAX_SECONDS`.
     """
-    n_runs = require_int(runs_name, n_runs, minimum=1)
+    n_runs = require_int(runs_name, n_runs, minimum=1, maximum=MAX_COUNT)
     workers = default_workers() if workers is None else require_int("workers", workers, minimum=1)
     chunk = require_int("chunk_size", experiment.chunk_size(), minimum=1)
     n_chunks = -(-n_runs // chunk)  # without listing them: n_runs may be far too large to run
@@ -231,6 +237,8 @@ def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *,
     return Estimate(peak, seconds, chunk, n_chunks, in_flight)
 
 
+@checked(experiment=partial(require_instance, cls=Experiment), workers=optional(require_workers), progress=optional(require_bool), desc=require_text,
+         extra_bytes=require_nonnegative, **_TEXTS)
 def run(experiment: Experiment, n_runs: int, seed=0, *, workers: int | None = None, progress: bool | None = False,
         desc: str = "Monte Carlo", extra_bytes: float = 0.0, runs_name: str = "n_runs",
         params_name: str = "params", what: str = "one realization", scenario_advice: str = "use a smaller scenario"):
@@ -242,7 +250,7 @@ def run(experiment: Experiment, n_runs: int, seed=0, *, workers: int | None = No
     progress : show a bar over realizations (None: unless CI or KFCAL_QUIET is set)
     extra_bytes, runs_name, params_name, what, scenario_advice : passed to :func:`estimate`, which runs first
     """
-    n_runs = require_int(runs_name, n_runs, minimum=1)
+    n_runs = require_int(runs_name, n_runs, minimum=1, maximum=MAX_COUNT)
     if not isinstance(seed, np.random.Generator):
         seed = require_seed("seed", seed)
     plan = estimate(experiment, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,

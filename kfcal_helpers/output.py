@@ -9,6 +9,7 @@ import json
 import math
 
 from .process import PARTIAL_FILES
+from .validation import checked, optional, require_path, require_stream, require_text
 
 __all__ = ["dumps_json", "PARTIAL_FILES", "require_printable", "path_text", "print_summary"]
 
@@ -25,9 +26,13 @@ def _strict(value):
 
 def dumps_json(obj) -> str:
     """``obj`` as strict JSON (``allow_nan=False``): a non-finite float (NaN, infinity) becomes null."""
-    return json.dumps(_strict(obj), allow_nan=False)
+    try:
+        return json.dumps(_strict(obj), allow_nan=False)
+    except TypeError as exc:  # an object JSON has no form for (an array, a set, ...)
+        raise ValueError(f"obj must be made of dicts, lists, str, numbers, True, False and None ({exc})") from None
 
 
+@checked(name=require_text, text=require_text, stream=optional(require_stream))
 def require_printable(name: str, text: str, stream=None) -> str:
     """``text`` if ``stream`` (default ``sys.stdout``) can write it in its encoding and error setting,
     else ValueError naming ``name``; a command checks the lines it will print before it writes files."""
@@ -45,6 +50,7 @@ def require_printable(name: str, text: str, stream=None) -> str:
     return text
 
 
+@checked(path=require_path, stream=optional(require_stream))
 def path_text(path, stream=None) -> str:
     """``path`` as text to print on ``stream`` (default ``sys.stdout``): each character the stream's
     encoding lacks as a backslash escape (``\\xe9``, ``\\u03c3``), never a look-alike, so the printed

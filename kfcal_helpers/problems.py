@@ -12,6 +12,7 @@ from .calibration import PROBLEM as CALIBRATION
 from .coop import PROBLEM as COOP
 from .orbit import PROBLEM as ORBIT
 from .registry import Problem
+from .validation import require_text
 
 __all__ = ["PROBLEMS", "problem", "CALIBRATION", "COOP", "ORBIT"]
 
@@ -21,6 +22,7 @@ PROBLEMS: tuple[Problem, ...] = (CALIBRATION, COOP, ORBIT)
 
 def problem(name: str) -> Problem:
     """The problem called ``name`` (ValueError naming the problems there are)."""
+    require_text("problem", name)
     for p in PROBLEMS:
         if p.name == name:
             return p

@@ -9,7 +9,12 @@ from __future__ import annotations
 
 import os
 
+from functools import partial
+
 from .process import OPEN_BARS
+from .validation import MAX_COUNT, checked, optional, require_bool, require_int, require_iterable, require_text
+
+_count = partial(require_int, minimum=0, maximum=MAX_COUNT)
 
 __all__ = ["progress_enabled", "progress", "progress_bar"]
 
@@ -19,6 +24,7 @@ def progress_enabled() -> bool:
     return not (os.environ.get("CI") or os.environ.get("KFCAL_QUIET"))
 
 
+@checked(iterable=require_iterable, total=optional(_count), desc=optional(require_text), enabled=optional(require_bool))
 def progress(iterable, total: int | None = None, desc: str | None = None, enabled: bool | None = None):
     """Wrap ``iterable`` in a tqdm bar (notebook widget or terminal) when enabled.
 
@@ -51,6 +57,7 @@ class _NoBar:
         pass
 
 
+@checked(total=_count, desc=optional(require_text), enabled=optional(require_bool))
 def progress_bar(total: int, desc: str | None = None, enabled: bool | None = None):
     """A tqdm bar over ``total`` items that the caller moves with ``update(n)`` and ends with
     ``close()``, or an object with the same two methods that shows nothing when not enabled

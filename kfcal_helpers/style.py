@@ -13,7 +13,7 @@ import sys
 
 import matplotlib as mpl
 
-from .validation import require_choice
+from .validation import checked, require_choice, require_positive
 
 __all__ = ["STYLES", "SLIDE_SIZE", "SLIDE_DPI", "INLINE_BACKEND", "style_params", "use_style", "line_width", "marker_size", "figure_size"]
 
@@ -81,11 +81,13 @@ def use_style(target: str = "notebook") -> None:
     mpl.rcParams.update(params)
 
 
+@checked(scale=require_positive)
 def line_width(scale: float = 1.0) -> float:
     """A line width relative to the current ``rcParams['lines.linewidth']`` (thin lines for dense data)."""
     return scale * mpl.rcParams["lines.linewidth"]
 
 
+@checked(scale=require_positive)
 def marker_size(scale: float = 1.0) -> float:
     """A marker size relative to the current ``rcParams['lines.markersize']``."""
     return scale * mpl.rcParams["lines.markersize"]

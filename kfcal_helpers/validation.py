@@ -15,7 +15,8 @@ from __future__ import annotations
 import functools
 import inspect
 import math
-from collections.abc import Hashable
+import os
+from collections.abc import Hashable, Iterable
 from numbers import Integral, Real
 
 import numpy as np
@@ -31,6 +32,11 @@ __all__ = [
     "require_finite_array",
     "require_bool",
     "require_text",
+    "require_sequence",
+    "require_nonnegative",
+    "require_path",
+    "require_stream",
+    "require_iterable",
     "describe",
     "checked",
     "optional",
@@ -151,6 +157,35 @@ def require_text(name: str, value) -> str:
     return value
 
 
+def require_sequence(name: str, value) -> list:
+    """Return ``value``'s items as a list; raise unless it is a list, a tuple or an array of at least one
+    axis (text, a number, None or a mapping is not)."""
+    if not isinstance(value, (list, tuple, np.ndarray)) or (isinstance(value, np.ndarray) and value.ndim == 0):
+        raise ValueError(f"{name} must be a sequence (list, tuple or array), got {describe(value)}")
+    return list(value)
+
+
+def require_path(name: str, value):
+    """Return ``value``; raise unless it is a file path: a str, bytes or an ``os.PathLike``."""
+    if not isinstance(value, (str, bytes, os.PathLike)):
+        raise ValueError(f"{name} must be a path (str or pathlib.Path), got {describe(value)}")
+    return value
+
+
+def require_stream(name: str, value):
+    """Return ``value``; raise unless it is a writable text stream (has ``write``, like ``sys.stdout``)."""
+    if not callable(getattr(value, "write", None)):
+        raise ValueError(f"{name} must be a text stream with a write method (such as sys.stdout), got {describe(value)}")
+    return value
+
+
+def require_iterable(name: str, value):
+    """Return ``value``; raise unless it can be iterated over (a list, a range, an array, ...)."""
+    if not isinstance(value, Iterable) or (isinstance(value, np.ndarray) and value.ndim == 0):
+        raise ValueError(f"{name} must be iterable (a list, a range, an array, ...), got {describe(value)}")
+    return value
+
+
 def require_finite(name: str, value) -> float:
     """Return ``value`` as a float; raise if it is not a finite real number (an int beyond the float
     range, such as 10**400, included)."""
@@ -162,6 +197,14 @@ def require_finite(name: str, value) -> float:
         raise ValueError(f"{name} must be a finite real number, got {describe(value)}") from None
     if not math.isfinite(value):
         raise ValueError(f"{name} must be a finite real number, got {describe(value)}")
+    return value
+
+
+def require_nonnegative(name: str, value) -> float:
+    """Return ``value`` as a float; raise unless it is finite and >= 0."""
+    value = require_finite(name, value)
+    if value < 0:
+        raise ValueError(f"{name} must be >= 0, got {describe(value)}")
     return value
 
 

@@ -39,7 +39,7 @@ from ..consistency import chi2_bounds as _chi2_bounds
 from ..consistency import nees as _nees
 from ..consistency import nis as _nis
 from ..unscented import VectorizedUKF, robust_sqrt
-from ..validation import (checked, optional, require_array, require_choice, require_covariance, require_instance,
+from ..validation import (checked, optional, require_array, require_bool, require_choice, require_covariance, require_instance,
                           require_positive, require_shape)
 from .model import (
     MAX_MEASUREMENT,
@@ -253,8 +253,7 @@ class FilterSetup:
         P0 = p.P0 if self.P0 is None else require_covariance("P0", self.P0, N_STATES)
         require_instance("points", self.points, SigmaPoints)
         for flag in ("wrap_innovations", "subtract_nominal"):
-            if not isinstance(getattr(self, flag), (bool, np.bool_)):
-                raise ValueError(f"{flag} must be True or False, got {getattr(self, flag)!r}")
+            require_bool(flag, getattr(self, flag))
         values = {"filter": name, "params": p, "Q": np.array(Q),
                   "measurement": model if model is not None else MeasurementModel(p.Rtrue),
                   "x0": STATE.wrap(x0), "P0": np.array(P0)}

@@ -25,7 +25,7 @@ from filterpy.kalman import MerweScaledSigmaPoints
 
 from ..batching import BatchArrays
 from ..unscented import batch_sigma_points, gain_solve, mT, unscented_moments
-from ..validation import require_instance
+from ..validation import checked, require_array, require_bool, require_instance
 from .filters import FilterSetup, check_measurements
 from .model import jacobian_relative, measure_relative, measurement_layout, nominal_trajectory, require_states, station_states
 from .params import N_STATES, N_STATION_MEAS
@@ -49,7 +49,7 @@ class BatchResult(BatchArrays):
 
 def _inputs(y, setup, truth):
     s = require_instance("setup", setup, FilterSetup)
-    y = np.asarray(y, dtype=float)
+    y = require_array("y", y)
     if y.ndim != 4:
         raise ValueError(f"y must have shape (n_runs, K, n_stations, 3), got {y.shape}")
     for run in y:  # the per-run checks, run by run
@@ -246,6 +246,7 @@ def run_ukf_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = F
 _RUNNERS = {"lkf": run_lkf_batch, "ekf": run_ekf_batch, "ukf": run_ukf_batch}
 
 
+@checked(keep_estimates=require_bool)
 def run_batch(y, setup: FilterSetup, truth=None, *, keep_estimates: bool = False) -> BatchResult:
     """Run the filter ``setup.filter`` on the measurements ``y`` (N, K, n_stations, 3) of N realizations
     (NaN where a station has no measurement; the stations may differ between runs), with ``truth``

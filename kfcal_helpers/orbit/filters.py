@@ -38,8 +38,9 @@ from filterpy.kalman import ExtendedKalmanFilter, KalmanFilter, MerweScaledSigma
 
 from ..consistency import nees as _nees
 from ..unscented import VectorizedUKF, robust_sqrt
-from ..validation import require_choice, require_covariance, require_instance, require_int, require_shape
+from ..validation import require_choice, require_covariance, require_finite, require_instance, require_int, require_shape
 from .model import (
+    MAX_SUBSTEPS,
     PROPAGATION_SUBSTEPS,
     TRANSITIONS,
     discretize,
@@ -98,13 +99,10 @@ class FilterSetup:
             "x0": p.x0 if self.x0 is None else require_shape("x0", require_states("x0", self.x0), (N_STATES,)),
             "P0": np.array(p.P0 if self.P0 is None else require_covariance("P0", self.P0, N_STATES)),
             "transition": require_choice("transition", self.transition, TRANSITIONS),
-            "substeps": require_int("substeps", self.substeps, minimum=1),
+            "substeps": require_int("substeps", self.substeps, minimum=1, maximum=MAX_SUBSTEPS),
         }
         for name in ("alpha", "beta", "kappa"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v):
-                raise ValueError(f"{name} must be a finite number, got {v!r}")
-            values[name] = float(v)
+            values[name] = require_finite(name, getattr(self, name))
         if not 0 < values["alpha"] <= 1 or N_STATES + values["kappa"] <= 0:
             raise ValueError(f"alpha must be in (0, 1] and kappa > -{N_STATES}, got alpha={values['alpha']:g}, "
                              f"kappa={values['kappa']:g}")

@@ -27,13 +27,14 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..angles import AngleLayout, wrap_angle
-from ..validation import require_choice, require_int, require_positive
-from .params import N_STATES, N_STATION_MEAS, OrbitParams
+from ..validation import checked, require_array, require_choice, require_finite_array, require_int, require_positive
+from .params import MAX_STEPS, N_STATES, N_STATION_MEAS, OrbitParams
 
 __all__ = [
     "PHI",
     "TRANSITIONS",
     "PROPAGATION_SUBSTEPS",
+    "MAX_SUBSTEPS",
     "require_states",
     "params_or_default",
     "dynamics",
@@ -63,11 +64,13 @@ PHI = 2  #: position of phi in a station's [rho, rhodot, phi]
 TRANSITIONS = ("euler", "expm")
 #: RK4 substeps per sample interval of :func:`propagate` (the filters' nonlinear one-step map)
 PROPAGATION_SUBSTEPS = 2
+#: the most RK4 substeps per sample interval accepted (:func:`propagate`, the filters' ``substeps``)
+MAX_SUBSTEPS = 10_000
 
 
 def require_states(name: str, x) -> np.ndarray:
     """``x`` as a float array of shape (..., 4) with finite entries; ValueError naming ``name`` otherwise."""
-    arr = np.asarray(x, dtype=float)
+    arr = require_array(name, x)
     if arr.ndim == 0 or arr.shape[-1] != N_STATES:
         raise ValueError(f"{name} must have shape (..., {N_STATES}) [X, Xdot, Y, Ydot], got {arr.shape}")
     if not np.isfinite(arr).all():
@@ -121,7 +124,7 @@ def dynamics(x, params: OrbitParams | None = None, w=None) -> np.ndarray:
         raise ValueError("x: a position is at r = 0, where gravity is undefined")
     out = _f(x, p.mu)
     if w is not None:
-        w = np.asarray(w, dtype=float)
+        w = require_array("w", w)
         if w.ndim == 0 or w.shape[-1] != 2 or not np.isfinite(w).all():
             raise ValueError(f"w must have shape (..., 2) with finite entries (km/s^2), got {w.shape}")
         out = out + w @ p.Gamma.T
@@ -148,6 +151,7 @@ def jacobian_A(x, params: OrbitParams | None = None) -> np.ndarray:
     return A
 
 
+@checked(t=require_finite_array)
 def nominal_state(t, params: OrbitParams | None = None) -> np.ndarray:
     """The circular nominal orbit at times ``t`` (s, any shape), in closed form, shape t.shape + (4,):
     ``X = r0 cos nt``, ``Xdot = -r0 n sin nt``, ``Y = r0 sin nt``, ``Ydot = r0 n cos nt``,
@@ -162,12 +166,13 @@ def nominal_state(t, params: OrbitParams | None = None) -> np.ndarray:
 def nominal_trajectory(params: OrbitParams | None = None, n_samples: int | None = None) -> np.ndarray:
     """The nominal at the samples t_k = k dt, (K, 4); ``K = params.n_samples`` unless given."""
     p = params_or_default(params)
-    K = p.n_samples if n_samples is None else require_int("n_samples", n_samples, minimum=1)
+    K = p.n_samples if n_samples is None else require_int("n_samples", n_samples, minimum=1, maximum=MAX_STEPS + 1)
     return nominal_state(p.dt * np.arange(K), p)
 
 
 # ---------------------------------------------------------------------------
 # Stations
+@checked(t=require_finite_array)
 def station_angles(t, params: OrbitParams | None = None) -> np.ndarray:
     """Angles ``theta_i(t) = omegaE t + i 2 pi / n_stations`` (rad, not wrapped) of the stations
     i = 0..n_stations-1 at times ``t`` (s, any shape), shape t.shape + (n_stations,)."""
@@ -176,24 +181,26 @@ def station_angles(t, params: OrbitParams | None = None) -> np.ndarray:
     return p.omegaE * t[..., None] + 2.0 * np.pi * np.arange(p.n_stations) / p.n_stations
 
 
+@checked(t=require_finite_array)
 def station_states(t, params: OrbitParams | None = None) -> np.ndarray:
     """States ``[Xi, Xidot, Yi, Yidot]`` (km, km/s) of the stations at times ``t`` (s, any shape), shape
     t.shape + (n_stations, 4): ``Xi = RE cos theta_i``, ``Xidot = -RE omegaE sin theta_i``, and so on."""
     p = params_or_default(params)
-    th = station_angles(t, p)
+    th = station_angles.__wrapped__(t, p)  # t is checked already
     c, s = np.cos(th), np.sin(th)
     return np.stack([p.RE * c, -p.RE * p.omegaE * s, p.RE * s, p.RE * p.omegaE * c], axis=-1)
 
 
 def relative_states(x, t, params: OrbitParams | None = None):
     """Satellite minus stations, ``d = x - x_i`` (..., n_stations, 4), and the station states, for states
-    ``x`` (..., 4) (not checked) at times ``t`` (s) broadcast with x's leading axes: the stations are computed
-    once per distinct time (shape t.shape + (n_stations, 4)) and broadcast."""
+    ``x`` (..., 4) at times ``t`` (s) broadcast with x's leading axes (neither checked: the filters' inner loop):
+    the stations are computed once per distinct time (shape t.shape + (n_stations, 4)) and broadcast."""
     p = params_or_default(params)
-    st = station_states(t, p)
+    st = station_states.__wrapped__(t, p)
     return np.asarray(x, dtype=float)[..., None, :] - st, st
 
 
+@checked(t=require_finite_array)
 def visible(x, t, params: OrbitParams | None = None) -> np.ndarray:
     """Which stations see the satellite: bool (..., n_stations), ``(r - r_i) . r_i > 0`` (the line of
     sight above station i's horizon).  ``x`` (..., 4) states at times ``t`` (s, broadcast with x's
@@ -222,6 +229,7 @@ def measure_relative(d):
     return out
 
 
+@checked(t=require_finite_array)
 def measure(x, t, params: OrbitParams | None = None) -> np.ndarray:
     """Noise-free measurements ``[rho, rhodot, phi]`` (km, km/s, rad; phi in (-pi, pi]) of every station,
     visible or not, shape (..., n_stations, 3).  ``x`` (..., 4) states at times ``t`` (s, broadcast with
@@ -232,6 +240,7 @@ def measure(x, t, params: OrbitParams | None = None) -> np.ndarray:
     return measure_relative(d)
 
 
+@checked(t=require_finite_array)
 def jacobian_C(x, t, params: OrbitParams | None = None) -> np.ndarray:
     """Measurement Jacobians ``C_i = d[rho_i, rhodot_i, phi_i]/dx`` of every station, shape
     (..., n_stations, 3, 4), at states ``x`` (..., 4) and times ``t`` (s)::
@@ -275,7 +284,7 @@ def discretize(A, dt: float = 10.0, transition: str = "euler") -> np.ndarray:
     (:attr:`OrbitParams.Omega`).  dt in s."""
     dt = require_positive("dt", dt)
     transition = require_choice("transition", transition, TRANSITIONS)
-    A = np.asarray(A, dtype=float)
+    A = require_array("A", A)
     if A.ndim < 2 or A.shape[-2:] != (N_STATES, N_STATES) or not np.isfinite(A).all():
         raise ValueError(f"A must have shape (..., 4, 4) with finite entries, got {A.shape}")
     if transition == "euler":
@@ -310,12 +319,12 @@ def propagate(x, params: OrbitParams | None = None, dt: float | None = None,
     p = params_or_default(params)
     x = require_states("x", x)
     dt = p.dt if dt is None else require_positive("dt", dt)
-    return rk4_flow(x, dt, p.mu, require_int("substeps", substeps, minimum=1))
+    return rk4_flow(x, dt, p.mu, require_int("substeps", substeps, minimum=1, maximum=MAX_SUBSTEPS))
 
 
 def wrap_phi(z) -> np.ndarray:
     """Copy of station measurements ``z`` (..., 3) with phi wrapped to (-pi, pi]."""
-    z = np.array(z, dtype=float)
+    z = np.array(require_finite_array("z", z, shape=(..., N_STATION_MEAS), allow_nan=True))
     z[..., PHI] = wrap_angle(z[..., PHI])
     return z
 

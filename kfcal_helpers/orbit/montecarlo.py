@@ -22,10 +22,13 @@ import numpy as np
 
 from .. import montecarlo as core
 from ..consistency import Check, step_checks, t_band
-from ..validation import require_choice, require_instance, require_int, require_significance
+from functools import partial
+
+from ..validation import (MAX_SEED, checked, optional, require_choice, require_instance, require_int,
+                          require_significance, require_workers)
 from .batch import run_batch
 from .filters import FilterSetup
-from .params import N_STATES, OrbitParams
+from .params import MAX_STEPS, N_STATES, OrbitParams
 from .simulation import INTEGRATORS, simulate
 
 __all__ = ["CHUNK_SIZE", "MonteCarloResult", "OrbitExperiment", "truth_model_test"]
@@ -96,9 +99,9 @@ class OrbitExperiment:
     def __init__(self, setup: FilterSetup, n_runs: int, alpha: float = 0.05, every: int = 1,
                  integrator: str = "rk4"):
         self.setup = require_instance("setup", setup, FilterSetup)
-        self.n_runs = require_int("n_runs", n_runs, minimum=1)
+        self.n_runs = require_int("n_runs", n_runs, minimum=1, maximum=MAX_SEED)
         self.alpha = require_significance("alpha", alpha)
-        self.every = require_int("every", every, minimum=1)
+        self.every = require_int("every", every, minimum=1, maximum=MAX_STEPS)
         self.integrator = require_choice("integrator", integrator, INTEGRATORS)
         self.K = setup.params.n_samples
 
@@ -147,6 +150,8 @@ class OrbitExperiment:
                                 total["dof"], total["errors"], total["sigma2"], seconds)
 
 
+@checked(n_runs=partial(require_int, minimum=1, maximum=MAX_SEED), every=partial(require_int, minimum=1, maximum=MAX_STEPS),
+         workers=optional(require_workers))
 def truth_model_test(params: OrbitParams | None = None, n_runs: int = 50, seed=0, *, filter: str = "ekf",
                      alpha: float = 0.05, every: int = 1, integrator: str = "rk4", workers: int | None = None,
                      setup: FilterSetup | None = None, **settings) -> MonteCarloResult:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..validation import require_covariance, require_int, require_positive, require_shape
+from ..validation import require_covariance, require_finite, require_int, require_positive, require_shape
 
 __all__ = ["N_STATES", "N_NOISE", "N_STATION_MEAS", "MAX_STATIONS", "MAX_STEPS", "OrbitParams"]
 
@@ -83,9 +83,8 @@ class OrbitParams:
     def __post_init__(self):
         for name in ("mu", "r0", "RE", "dt"):
             object.__setattr__(self, name, require_positive(name, getattr(self, name)))
-        omega = self.omegaE
-        if isinstance(omega, bool) or not isinstance(omega, (int, float, np.integer, np.floating)) \
-                or not math.isfinite(float(omega)) or omega < 0:
+        omega = require_finite("omegaE", self.omegaE)
+        if omega < 0:
             raise ValueError(f"omegaE must be a finite number >= 0 (rad/s), got {omega!r}")
         object.__setattr__(self, "omegaE", float(omega))
         steps = require_int("n_steps", self.n_steps, minimum=1)

@@ -27,10 +27,14 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.linalg import cholesky
 
-from ..validation import as_generator, require_int
-from ..validation import require_choice
+from functools import partial
+
+from ..validation import (MAX_SEED, as_generator, checked, optional, require_bool, require_choice, require_covariance,
+                          require_array, require_finite_array, require_int, require_positive, require_sequence, require_text)
 from .model import horizon, measure_relative, params_or_default, relative_states, require_states, rk4_flow, wrap_phi
-from .params import N_NOISE, N_STATES, N_STATION_MEAS, OrbitParams
+from .params import MAX_STATIONS, MAX_STEPS, N_NOISE, N_STATES, N_STATION_MEAS, OrbitParams
+
+_n_runs = optional(partial(require_int, minimum=1, maximum=MAX_SEED))
 
 __all__ = ["DEFAULT_LOG_SEED", "ODE_RTOL", "ODE_ATOL", "INTEGRATORS", "RK4_TRUTH_SUBSTEPS", "integrate", "simulate_truth", "simulate_measurements",
            "to_columns", "from_columns", "OrbitLog", "Simulation", "simulate"]
@@ -50,6 +54,7 @@ def _gaussian(rng, cov, size):
     return rng.standard_normal(size + (cov.shape[0],)) @ cholesky(cov, lower=True).T
 
 
+@checked(w=optional(partial(require_finite_array, shape=(..., N_NOISE))), dt=optional(require_positive))
 def integrate(x, params: OrbitParams | None = None, w=None, dt: float | None = None) -> np.ndarray:
     """States after ``dt`` (s, default ``params.dt``) of ``xdot = f(x) + Gamma w`` from ``x`` (..., 4), with
     the accelerations ``w`` (..., 2) (km/s^2, default zero) held constant: one ``solve_ivp`` call for all
@@ -80,6 +85,7 @@ def integrate(x, params: OrbitParams | None = None, w=None, dt: float | None = N
     return sol.y[:, -1].reshape(shape)
 
 
+@checked(n_runs=_n_runs, process_noise=require_bool)
 def simulate_truth(params: OrbitParams | None = None, seed=None, n_runs: int | None = None, x0=None,
                    process_noise: bool = True, integrator: str = "solve_ivp") -> np.ndarray:
     """True states at t_k = k dt, (K, 4) or (n_runs, K, 4) [km, km/s, km, km/s]:
@@ -108,6 +114,7 @@ def simulate_truth(params: OrbitParams | None = None, seed=None, n_runs: int | N
     return x
 
 
+@checked(first=require_bool)
 def simulate_measurements(truth, params: OrbitParams | None = None, seed=None, first: bool = False) -> np.ndarray:
     """Noisy measurements of the stations that see ``truth`` (..., K, 4): shape (..., K, n_stations, 3),
     ``[rho, rhodot, phi]`` (km, km/s, rad, phi wrapped), NaN for a station that does not see the
@@ -130,7 +137,7 @@ def to_columns(y) -> tuple:
     """The course's per-step columns of dense measurements ``y`` (K, n_stations, 3): a tuple of K arrays
     (4, m_k), one column ``[rho; rhodot; phi; station id]`` per station with a measurement (ids from 1,
     in increasing order), (4, 0) where none."""
-    y = np.asarray(y, dtype=float)
+    y = require_array("y", y)
     if y.ndim != 3 or y.shape[2] != N_STATION_MEAS:
         raise ValueError(f"y must have shape (K, n_stations, 3), got {y.shape}")
     out = []
@@ -144,7 +151,8 @@ def from_columns(ydata, n_stations: int = 12) -> np.ndarray:
     """Dense measurements (K, n_stations, 3) (NaN where a station has no column) from the course's
     per-step columns ``ydata``: a sequence of K arrays (4, m_k) ``[rho; rhodot; phi; station id]``
     (ids 1..n_stations, each at most once per step; a step with none may be empty)."""
-    n_stations = require_int("n_stations", n_stations, minimum=1)
+    n_stations = require_int("n_stations", n_stations, minimum=1, maximum=MAX_STATIONS)
+    ydata = require_sequence("ydata", ydata)
     out = np.full((len(ydata), n_stations, N_STATION_MEAS), np.nan)
     for k, cols in enumerate(ydata):
         cols = np.asarray(cols, dtype=float)
@@ -177,6 +185,16 @@ class OrbitLog:
     n_stations: int = 12
     truth: np.ndarray | None = None
     source: str = ""
+
+    def __post_init__(self):
+        stations = require_int("n_stations", self.n_stations, minimum=1, maximum=MAX_STATIONS)
+        K = len(from_columns(self.ydata, stations))
+        require_finite_array("t", self.t, shape=(K,))
+        require_covariance("Qtrue", self.Qtrue, N_NOISE)
+        require_covariance("Rtrue", self.Rtrue, N_STATION_MEAS)
+        if self.truth is not None:
+            require_finite_array("truth", self.truth, shape=(K, N_STATES))
+        require_text("source", self.source)
 
     @property
     def y(self) -> np.ndarray:
@@ -224,6 +242,7 @@ class Simulation:
         return self.truth.shape[0] if self.truth.ndim == 3 else None
 
 
+@checked(n_runs=_n_runs, every=partial(require_int, minimum=1, maximum=MAX_STEPS), first=require_bool)
 def simulate(params: OrbitParams | None = None, n_runs: int | None = None, seed=DEFAULT_LOG_SEED, *,
              every: int = 1, first: bool = False, integrator: str = "solve_ivp") -> Simulation:
     """Truths and measurements of the truth model from one seeded generator.
