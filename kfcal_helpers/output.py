@@ -9,7 +9,7 @@ import json
 import math
 
 from .process import PARTIAL_FILES
-from .validation import checked, optional, require_path, require_stream, require_text
+from .validation import checked, optional, require_bool, require_mapping, require_path, require_stream, require_text
 
 __all__ = ["dumps_json", "PARTIAL_FILES", "require_printable", "path_text", "print_summary"]
 
@@ -76,6 +76,7 @@ def path_text(path, stream=None) -> str:
     return "".join(out)
 
 
+@checked(out=require_mapping, as_json=require_bool, tail=optional(require_text))
 def print_summary(out: dict, as_json: bool = False, tail: str | None = None) -> None:
     """Print a command's summary ``out`` (key -> number, text, bool or list of numbers): one strict JSON
     object, or one ``key  value`` line per entry (numbers to 4 significant digits, booleans yes/no, texts

@@ -32,6 +32,7 @@ __all__ = [
     "require_finite_array",
     "require_bool",
     "require_text",
+    "require_mapping",
     "require_sequence",
     "require_nonnegative",
     "require_path",
@@ -154,6 +155,13 @@ def require_text(name: str, value) -> str:
     """Return ``value``; raise unless it is a str."""
     if not isinstance(value, str):
         raise ValueError(f"{name} must be a text (str), got {describe(value)}")
+    return value
+
+
+def require_mapping(name: str, value) -> dict:
+    """Return ``value``; raise unless it is a non-empty dict."""
+    if not isinstance(value, dict) or not value:
+        raise ValueError(f"{name} must be a non-empty dict, got {describe(value)}")
     return value
 
 

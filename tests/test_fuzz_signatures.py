@@ -236,6 +236,11 @@ VALID = {
     "FilterSetup@orbit": lambda: dict(filter="ukf", params=OP, Q=OP.Qtrue, R=OP.Rtrue, x0=OP.x0, P0=OP.P0,
                                       transition="expm", substeps=2, alpha=1.0, beta=2.0, kappa=0.0),
     "OrbitEKF@orbit": lambda: dict(setup=_orbit_setup()),
+    "log_params": lambda: dict(log=_orbit_sim().log(), base=OP),
+    "course_log@orbit": lambda: dict(params=OP, seed=1),
+    "write_generated_log": None,  # writes a file: its rows in tests/test_orbit_data.py
+    "print_summary": lambda: dict(out={"n": 1}, as_json=False, tail=None),
+    "figure_size": lambda: dict(),
     "run@orbit": lambda: (lambda sim: dict(y=sim.y, setup=_orbit_setup(), truth=sim.truth))(_orbit_sim()),
     "run_ekf@orbit": lambda: (lambda sim: dict(y=sim.y, setup=_orbit_setup("ekf"), truth=sim.truth))(_orbit_sim()),
     "run_lkf@orbit": lambda: (lambda sim: dict(y=sim.y, setup=_orbit_setup("lkf"), truth=sim.truth))(_orbit_sim()),
@@ -298,7 +303,7 @@ ALSO_VALID = {("run_monte_carlo", "seed"): {"None"}, ("truth_model_test", "seed"
               ("new_figure", "figure"): {"None"}, ("new_figure", "figsize"): {"None"}}
 
 #: (name, argument) that take any text: names, messages, descriptions, paths (a string is a valid value there)
-TEXT_OK = {("outage_mask", "name"), ("parse_outage", "name"), ("CoopLog", "source"), ("OrbitLog", "source"),
+TEXT_OK = {("outage_mask", "name"), ("print_summary", "tail"), ("parse_outage", "name"), ("CoopLog", "source"), ("OrbitLog", "source"),
            ("truth_model_test", "desc"), ("format_number", "value"), ("dumps_json", "obj"), ("named", "path"),
            ("require_printable", "name"), ("require_printable", "text"), ("path_text", "path"),
            ("progress", "iterable"), ("progress", "desc"), ("progress_bar", "desc"), ("run", "desc"),
