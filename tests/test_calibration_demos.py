@@ -220,7 +220,8 @@ def test_check_17_1_first_fix_sigma():
     assert _rejected(check_demo_first_fix_sigma(four_digits(wrong["rounded_readout"])), "17.1", "rounded_readout")
     # the one format rule: the computed value, no rounding; the right value rounded is told so
     assert check_demo_first_fix_sigma(four_digits(right)).message == ROUNDED_HINT  # [3.015, 0.03997, 0.1]
-    assert check_demo_first_fix_sigma([3.0156, 0.03997, 0.1]).message == EXERCISES["17.1"].hint  # near, but no rounding
+    near = check_demo_first_fix_sigma([3.0156, 0.03997, 0.1])   # near, but no rounding: the entry that is off named
+    assert not near.correct and near.message != ROUNDED_HINT and "σ_p" in near.message
     assert not check_demo_first_fix_sigma(...).answered
     for bad in ("3.015", [1.0, 2.0], None):
         fb = check_demo_first_fix_sigma(bad)
