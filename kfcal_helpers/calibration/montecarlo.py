@@ -99,7 +99,7 @@ _RULE_PARTIAL_PER_FIX2, _RULE_PARTIAL_PER_SAMPLE = 72.0, 100.0
 # Cost model of the estimate, measured (tracemalloc, VmHWM of a child, wall time) on the 2-core
 # reference machine and rounded up (tests/test_calibration_montecarlo.py and
 # tests/test_calibration_memory.py check it against tracemalloc and the child's peak):
-# * the interpreter with numpy and scipy; per IMU sample what the whole run keeps (the filter's P);
+# * the interpreter (the core's BASE_BYTES); per IMU sample what the whole run keeps (the filter's P);
 # * the sums: per fix squared, and with between_fixes per IMU sample;
 # * per chunk in flight its realizations (per IMU sample and per fix of one realization; with
 #   between_fixes the running sums of the IMU noise, and for filterpy its 200 Hz estimates) and its
@@ -107,7 +107,6 @@ _RULE_PARTIAL_PER_FIX2, _RULE_PARTIAL_PER_SAMPLE = 72.0, 100.0
 # * at the end, the statistics of the checks (per fix squared: the pairwise residual statistics; per
 #   IMU sample with between_fixes: the 200 Hz moments);
 # * seconds per IMU sample of one realization on one thread, and per fix squared.
-_BASE_BYTES = 130e6
 _FIXED_BYTES_PER_SAMPLE = 100.0
 _SUMS_BYTES_PER_FIX2 = 40.0
 _BYTES_PER_SAMPLE, _BYTES_PER_FIX = 16.0, 400.0
@@ -657,7 +656,7 @@ class CalibrationExperiment:
     def fixed_bytes(self, n_runs: int) -> float:
         """The interpreter, the filter's covariances and the sums of the whole run."""
         p = self.params
-        return (_BASE_BYTES + _FIXED_BYTES_PER_SAMPLE * p.n_imu + _SUMS_BYTES_PER_FIX2 * p.n_gps**2
+        return (core.BASE_BYTES + _FIXED_BYTES_PER_SAMPLE * p.n_imu + _SUMS_BYTES_PER_FIX2 * p.n_gps**2
                 + self._between_sums_bytes())
 
     def chunk_bytes(self, size: int) -> float:

@@ -172,12 +172,11 @@ def _mean_std(errors):
 
 
 # Memory of a test, bytes (measured with tracemalloc and the peak RSS of a child process,
-# tests/test_coop_memory.py): the interpreter with numpy, scipy, filterpy and this package; the
+# tests/test_coop_memory.py): the interpreter (the core's BASE_BYTES); the
 # float64 values kept per run and step (NEES, NIS, 6 errors, 6 two-sigma bounds); those of one chunk
 # in flight per run and step (its truths, measurements, the draws' temporaries and its partial
 # result); at the end, the memory of the last chunks, which the allocator may keep, and the blocks
 # of ``checks()``.
-_BASE_BYTES = 150e6
 _KEPT_PER_STEP = 14 * 8
 _CHUNK_PER_STEP = 48 * 8
 #: one-thread seconds per run of 1001 steps (2-core machine, 2026), and per chunk (the step loop)
@@ -210,7 +209,7 @@ class TruthModelExperiment:
         return CHUNK_SIZE
 
     def fixed_bytes(self, n_runs: int) -> float:
-        return _BASE_BYTES + _KEPT_PER_STEP * self.params.n_samples * n_runs
+        return core.BASE_BYTES + _KEPT_PER_STEP * self.params.n_samples * n_runs
 
     def chunk_bytes(self, size: int) -> float:
         return _CHUNK_PER_STEP * self.params.n_samples * size

@@ -73,11 +73,10 @@ class MonteCarloResult:
         return {"mean_error": error, **out}
 
 
-# Estimates (bytes, s): the interpreter with numpy, scipy, filterpy and this package; per run and step the
+# Estimates (bytes, s): the interpreter (the core's BASE_BYTES); per run and step the
 # float64 values kept (NEES, NIS, dof, 4 errors, 4 two-sigma bounds) and those of a chunk in flight (truth,
 # the dense measurements of 12 stations and their temporaries, the partial result); one-thread seconds per
 # run of 1401 steps and per chunk (the step loops), rounded up from runs on the 2-core machine.
-_BASE_BYTES = 150e6
 _KEPT_PER_STEP = 11 * 8
 _CHUNK_PER_STEP = 120 * 8
 _SECONDS_PER_RUN = {"lkf": 0.02, "ekf": 0.04, "ukf": 0.08}
@@ -106,7 +105,7 @@ class OrbitExperiment:
         return CHUNK_SIZE
 
     def fixed_bytes(self, n_runs: int) -> float:
-        return _BASE_BYTES + _KEPT_PER_STEP * self.K * n_runs
+        return core.BASE_BYTES + _KEPT_PER_STEP * self.K * n_runs
 
     def chunk_bytes(self, size: int) -> float:
         return _CHUNK_PER_STEP * self.K * size
