@@ -26,8 +26,12 @@ into partial sums (or per-run arrays), how to add those up, and what a chunk cos
 * **Progress and cancellation.**  A progress bar over realizations (quiet under tests and CI,
   :mod:`kfcal_helpers.progress`).  An exception in the calling thread while chunks run
   (``KeyboardInterrupt`` from Ctrl-C, or whatever the command line raises on SIGTERM) cancels the
-  chunks not started and stops the running ones at their next :meth:`Chunk.tick`; the exception
-  then propagates.
+  chunks not started and stops the running ones at their next :meth:`Chunk.check` (which
+  :meth:`Chunk.tick` calls); the exception then propagates.  **The one way to cancel**: a chunk
+  calls ``chunk.check()`` between its expensive steps (or ``chunk.tick(n)``, which checks too) and
+  nothing else: ``check()`` raises :class:`Cancelled`, which the core catches.  A chunk never tests
+  ``chunk.cancelled`` to return early, so whatever ``run_chunk`` returns is a whole chunk and
+  ``add`` never sees a partial one.
 
 The results of every problem offer the interface :class:`kfcal_helpers.consistency.MonteCarloSummary`
 (``n_runs``, ``alpha``, ``filter``, ``seconds``, ``checks()``), and :mod:`kfcal_helpers.consistency`
@@ -79,10 +83,11 @@ class Experiment(Protocol):
     seconds(n_runs) -> float
         The estimated time on one thread.
     run_chunk(size, rng, chunk) -> partial
-        Draw ``size`` realizations from ``rng`` and filter them; call ``chunk.tick(n)`` as
-        realizations finish (optional: a chunk that never ticks moves the bar when it ends) and
-        return early (anything) when ``chunk.cancelled``.  Runs on a worker thread: read the
-        experiment, never write it.
+        Draw ``size`` realizations from ``rng`` and filter them; call ``chunk.check()`` between
+        expensive steps (the one way to cancel: it raises :class:`Cancelled`, which the core
+        catches) and ``chunk.tick(n)`` as realizations finish (optional: a chunk that never ticks
+        moves the bar when it ends; ``tick`` checks too).  Return the whole chunk's partial result,
+        never a part of it.  Runs on a worker thread: read the experiment, never write it.
     empty() -> total
         The running total before any chunk.
     add(total, partial) -> total
@@ -115,8 +120,9 @@ class Cancelled(Exception):
 
 
 class Chunk:
-    """What a running chunk sees of the core: ``tick(n)`` (n realizations done), ``cancelled``,
-    ``check()`` (raise :class:`Cancelled` when cancelled)."""
+    """What a running chunk sees of the core: ``check()`` (raise :class:`Cancelled` when the run is
+    cancelled: call it between expensive steps, the one way to stop), ``tick(n)`` (n realizations
+    done; checks too) and ``cancelled`` (whether the run is cancelled, for display only)."""
 
     def __init__(self, cancel: threading.Event, lock: threading.Lock, counter: list, on_tick=None):
         self._cancel, self._lock, self._counter, self._on_tick = cancel, lock, counter, on_tick
@@ -268,7 +274,7 @@ def run(experiment: Experiment, n_runs: int, seed=0, *, workers: int | None = No
         chunk = Chunk(cancel, lock, counter, show if here else None)
         try:
             part = experiment.run_chunk(size, rng, chunk)
-        except Cancelled:
+        except Cancelled:  # the run is being torn down: nothing is added after a cancellation
             return None
         rest = size - chunk.ticked  # a chunk that did not tick moves the bar when it ends
         if rest:

@@ -41,7 +41,7 @@ class Toy:
             for _ in range(size):
                 chunk.tick()
         if self.stop_after is not None:
-            while not chunk.cancelled:  # a long chunk that only an interruption stops
+            while True:  # a long chunk that only an interruption stops, at its next check()
                 chunk.check()
                 threading.Event().wait(0.01)
         return size, x.sum(0), (x ** 2).sum(0)

@@ -756,10 +756,9 @@ class CalibrationExperiment:
         return sums, bsums
 
     def add(self, total, part):
-        if part is not None:
-            total[0].combine(part[0])
-            if total[1] is not None:
-                total[1].combine(part[1])
+        total[0].combine(part[0])
+        if total[1] is not None:
+            total[1].combine(part[1])
         return total
 
     def result(self, total, n_runs: int, seconds: float) -> MonteCarloResult:
