@@ -88,12 +88,17 @@ class Experiment(Protocol):
         catches) and ``chunk.tick(n)`` as realizations finish (optional: a chunk that never ticks
         moves the bar when it ends; ``tick`` checks too).  Return the whole chunk's partial result,
         never a part of it.  Runs on a worker thread: read the experiment, never write it.
-    empty() -> total
-        The running total before any chunk.
+    empty(n_runs) -> total
+        The running total before any chunk, for ``n_runs`` realizations (per-run arrays are
+        allocated here, so an experiment need not be told ``n_runs`` when it is built).
     add(total, partial) -> total
         ``partial`` added to ``total``; called in chunk order, in the calling thread.
     result(total, n_runs, seconds) -> result
         The problem's result (its ``checks()`` computed, if they are part of the timed work).
+
+    Optional, asked by :func:`estimate` for its refusals when the caller does not pass them:
+    ``what() -> str`` (one realization, e.g. "1001 steps of the EKF") and ``scenario_advice() -> str``
+    (how to make one realization smaller).
     """
 
     def chunk_size(self) -> int: ...
@@ -108,7 +113,7 @@ class Experiment(Protocol):
 
     def run_chunk(self, size: int, rng: np.random.Generator, chunk: "Chunk") -> Any: ...
 
-    def empty(self) -> Any: ...
+    def empty(self, n_runs: int) -> Any: ...
 
     def add(self, total: Any, partial: Any) -> Any: ...
 
@@ -202,9 +207,17 @@ class Estimate:
         return self.peak_bytes <= MEMORY_LIMIT and self.seconds <= MAX_SECONDS
 
 
+def _message(experiment, name: str, given: str | None, default: str) -> str:
+    """``given``, else what the experiment's optional ``name()`` says, else ``default``."""
+    if given is not None:
+        return given
+    ask = getattr(experiment, name, None)
+    return str(ask()) if callable(ask) else default
+
+
 def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *, extra_bytes: float = 0.0,
-             runs_name: str = "n_runs", params_name: str = "params", what: str = "one realization",
-             scenario_advice: str = "use a smaller scenario") -> Estimate:
+             runs_name: str = "n_runs", params_name: str = "params", what: str | None = None,
+             scenario_advice: str | None = None) -> Estimate:
     """The memory and time of ``run(experiment, n_runs, workers=workers)``, before it starts.
 
     ``extra_bytes``: what the caller needs after the run while its result is alive (the command
@@ -212,9 +225,13 @@ def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *,
     does not fit in :data:`MEMORY_LIMIT` (the message: ``"{params_name}: {what} needs about ... MB, more
     than the 500 MB allowed; {scenario_advice}"``, ``what`` describing one realization), naming
     ``runs_name`` when ``n_runs`` realizations need too much memory or more than :data:`MAX_SECONDS`.
+    ``what`` and ``scenario_advice`` default to the experiment's ``what()`` and ``scenario_advice()``
+    if it has them, else "one realization" and "use a smaller scenario".
     """
     n_runs = require_int(runs_name, n_runs, minimum=1)
     workers = default_workers() if workers is None else require_int("workers", workers, minimum=1)
+    what = _message(experiment, "what", what, "one realization")
+    scenario_advice = _message(experiment, "scenario_advice", scenario_advice, "use a smaller scenario")
     chunk = require_int("chunk_size", experiment.chunk_size(), minimum=1)
     n_chunks = -(-n_runs // chunk)  # without listing them: n_runs may be far too large to run
     size = min(chunk, n_runs)
@@ -244,7 +261,7 @@ def estimate(experiment: Experiment, n_runs: int, workers: int | None = None, *,
 
 def run(experiment: Experiment, n_runs: int, seed=0, *, workers: int | None = None, progress: bool | None = False,
         desc: str = "Monte Carlo", extra_bytes: float = 0.0, runs_name: str = "n_runs",
-        params_name: str = "params", what: str = "one realization", scenario_advice: str = "use a smaller scenario"):
+        params_name: str = "params", what: str | None = None, scenario_advice: str | None = None):
     """Run ``n_runs`` realizations of ``experiment`` in seeded chunks on threads; return
     ``experiment.result(total, n_runs, seconds)``.
 
@@ -262,7 +279,7 @@ def run(experiment: Experiment, n_runs: int, seed=0, *, workers: int | None = No
     chunks = chunk_generators(plan.chunk, n_runs, seed)
     cancel, lock, counter = threading.Event(), threading.Lock(), [0, 0]  # ticks by workers, ticks shown
     bar = progress_bar(n_runs, desc, progress)
-    total = experiment.empty()
+    total = experiment.empty(n_runs)
 
     def show():
         with lock:

@@ -46,7 +46,8 @@ class Toy:
                 threading.Event().wait(0.01)
         return size, x.sum(0), (x ** 2).sum(0)
 
-    def empty(self):
+    def empty(self, n_runs):
+        self.emptied_for = n_runs
         return [0, np.zeros(3), np.zeros(3), []]
 
     def add(self, total, part):
@@ -103,6 +104,19 @@ def test_estimate_counts_chunks_in_flight_and_refuses():
     slow.seconds = lambda n: 1e4
     with pytest.raises(ValueError, match="^runs: .*h allowed"):
         core.estimate(slow, 5, runs_name="runs")
+
+
+def test_the_core_gives_empty_the_runs_and_asks_the_experiment_for_its_messages():
+    toy = Toy()
+    core.run(toy, 20, 1)
+    assert toy.emptied_for == 20
+    big = Toy(chunk=1, bytes_per_run=1e9)
+    big.what = lambda: "a 3-vector"
+    big.scenario_advice = lambda: "use fewer states"
+    with pytest.raises(ValueError, match=r"^params: a 3-vector needs about \d+ MB, .*; use fewer states$"):
+        core.estimate(big, 5)
+    with pytest.raises(ValueError, match=r"^params: one draw needs .*; use fewer states$"):  # the caller's wins
+        core.run(big, 5, what="one draw")
 
 
 def test_default_workers_reads_kfcal_workers(monkeypatch):

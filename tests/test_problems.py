@@ -98,7 +98,7 @@ class ToyExperiment:
         chunk.tick(size)
         return size, e.sum(0), (e**2).sum(0), (e**2).sum()
 
-    def empty(self):
+    def empty(self, n_runs):
         return [0, np.zeros(3), np.zeros(3), 0.0]
 
     def add(self, total, part):

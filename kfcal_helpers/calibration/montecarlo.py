@@ -689,8 +689,11 @@ class CalibrationExperiment:
         p = self.params
         return f"one realization of {p.n_imu} IMU samples and {p.n_gps} GPS fixes, filter {self.filter!r}"
 
+    def scenario_advice(self) -> str:
+        return _SCENARIO_ADVICE
+
     # the run -----------------------------------------------------------------------------------
-    def empty(self):
+    def empty(self, n_runs: int):
         p = self.params
         m = filter_model(p, self.given_model)
         P, P_prior, S, K = covariance_sequence(p, self.missing, m)
@@ -799,7 +802,7 @@ def chunks_in_flight(params: CalibrationParams, n_runs: int, workers: int | None
     there are chunks, nor than fit in :data:`MEMORY_LIMIT` (at least 1); the core's
     :func:`kfcal_helpers.montecarlo.estimate` (ValueError when the run does not fit at all)."""
     exp = CalibrationExperiment(params, filter=filter, between_fixes=between_fixes)
-    return core.estimate(exp, n_runs, workers, what=exp.what()).in_flight
+    return core.estimate(exp, n_runs, workers).in_flight
 
 
 def estimate_run(params: CalibrationParams, n_runs: int, filter: str = "batch",
@@ -816,7 +819,7 @@ def estimate_run(params: CalibrationParams, n_runs: int, filter: str = "batch",
     require_choice("filter", filter, FILTERS)
     exp = CalibrationExperiment(params, filter=filter, between_fixes=bool(between_fixes), model=model)
     est = core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,
-                        params_name=params_name, what=exp.what(), scenario_advice=_SCENARIO_ADVICE)
+                        params_name=params_name)
     return est.peak_bytes, est.seconds
 
 
@@ -887,4 +890,4 @@ def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: s
     exp = CalibrationExperiment(params, filter=filter, truth=truth, alpha=alpha, missing=missing, model=model,
                                 between_fixes=bool(between_fixes))
     return core.run(exp, n_runs, seed, workers=workers, progress=progress, desc=f"Monte Carlo ({filter})",
-                    extra_bytes=extra_bytes, what=exp.what(), scenario_advice=_SCENARIO_ADVICE)
+                    extra_bytes=extra_bytes)

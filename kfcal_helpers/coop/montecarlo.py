@@ -194,13 +194,14 @@ class TruthModelExperiment:
     ``n_runs`` runs), in chunk order.
 
     setup : FilterSetup -- the filter and its settings (its ``params`` are the truth model's)
-    n_runs : int >= 1 -- the runs the total holds (pass the same to :func:`kfcal_helpers.montecarlo.run`)
+    n_runs : None, or int >= 1 -- the only runs this experiment may run (the core gives ``empty`` the
+        runs it runs; None: any)
     every : int >= 1 -- keep the measurements of every ``every``-th step only; alpha : of the result
     """
 
-    def __init__(self, setup: FilterSetup, n_runs: int, every: int = 1, alpha: float = 0.05):
+    def __init__(self, setup: FilterSetup, n_runs: int | None = None, every: int = 1, alpha: float = 0.05):
         self.setup = require_instance("setup", setup, FilterSetup)
-        self.n_runs = require_int("n_runs", n_runs, minimum=1)
+        self.n_runs = None if n_runs is None else require_int("n_runs", n_runs, minimum=1)
         self.every = require_int("every", every, minimum=1)
         self.alpha = require_significance("alpha", alpha)
         self.params = setup.params
@@ -222,6 +223,9 @@ class TruthModelExperiment:
         steps = self.params.n_samples / 1001
         return steps * (_SECONDS_PER_RUN[f] * n_runs + _SECONDS_PER_CHUNK[f] * -(-n_runs // CHUNK_SIZE))
 
+    def what(self) -> str:
+        return f"{self.params.n_samples} steps of the {self.setup.filter.upper()}"
+
     def draw(self, size: int, rng: np.random.Generator) -> Simulation:
         """The truths and measurements of a chunk of ``size`` runs drawn from ``rng``."""
         return simulate(self.params, size, rng, every=self.every)
@@ -232,24 +236,21 @@ class TruthModelExperiment:
         b = run_batch(sim.y, self.setup, sim.truth)
         return b.nees, b.nis, b.errors, b.sigma2
 
-    def empty(self):
-        n, K = self.n_runs, self.params.n_samples
+    def empty(self, n_runs):
+        if self.n_runs is not None and n_runs != self.n_runs:
+            raise ValueError(f"n_runs: the experiment was made for {self.n_runs} runs, {n_runs} asked")
+        n, K = n_runs, self.params.n_samples
         return {"n": 0, "nees": np.empty((n, K)), "nis": np.empty((n, K)), "errors": np.empty((n, K, N_STATES)),
                 "sigma2": np.empty((n, K, N_STATES))}
 
     def add(self, total, partial):
         i, size = total["n"], partial[0].shape[0]
-        if i + size > self.n_runs:
-            raise ValueError(f"n_runs: the experiment was made for {self.n_runs} runs, more ran")
         for name, values in zip(("nees", "nis", "errors", "sigma2"), partial):
             total[name][i:i + size] = values
         total["n"] = i + size
         return total
 
     def result(self, total, n_runs, seconds) -> MonteCarloResult:
-        if total["n"] != n_runs or n_runs != self.n_runs:
-            raise ValueError(f"n_runs: the experiment was made for {self.n_runs} runs, {total['n']} ran, "
-                             f"{n_runs} asked")
         s = self.setup
         return MonteCarloResult(s.filter, n_runs, self.alpha, self.every, self.params.t, total["nees"],
                                 total["nis"], total["errors"], total["sigma2"],
@@ -269,8 +270,7 @@ def estimate_truth_model_test(params: CoopParams | None = None, n_runs: int = 50
     need more than 500 MB or more than an hour."""
     n_runs = require_int(runs_name, n_runs, minimum=1)
     exp = _experiment(params, n_runs, filter, 0.05, every, settings)
-    return core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,
-                         what=f"{exp.params.n_samples} steps of the {exp.setup.filter.upper()}")
+    return core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name)
 
 
 @checked(params=optional(partial(require_instance, cls=CoopParams)), n_runs=partial(require_int, minimum=1, maximum=MAX_SEED),
@@ -307,8 +307,7 @@ def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0,
     alpha = require_significance("alpha", alpha)
     exp = _experiment(params, n_runs, filter, alpha, every, settings)
     desc = desc or f"{exp.setup.filter.upper()} truth-model test"
-    return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=desc,
-                    what=f"{exp.params.n_samples} steps of the {exp.setup.filter.upper()}")
+    return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=desc)
 
 
 @checked(params=optional(partial(require_instance, cls=CoopParams)), n_runs=partial(require_int, minimum=1, maximum=MAX_SEED),

@@ -207,7 +207,6 @@ def mistake_row(mistake: str, n_runs: int | None = None, params: OrbitParams | N
     n_runs = N_RUNS if n_runs is None else require_int("n_runs", n_runs, minimum=2)
     alpha = require_significance("alpha", alpha)
     exp = MistakeExperiment(case.pop("setup"), n_runs, alpha, **case)
-    mc = core.run(exp, n_runs, seed, progress=None, desc=f"orbit row {mistake}",
-                  what=f"{exp.K} steps of the EKF")
+    mc = core.run(exp, n_runs, seed, progress=None, desc=f"orbit row {mistake}")
     checks = _fixed_dof_checks(mc) if mistake == "orbit_nis_fixed_dof" else mc.checks()
     return MistakeRow("orbit", mistake, MISTAKES[mistake], checks, mc)

@@ -86,16 +86,17 @@ _SECONDS_PER_CHUNK = 2.0
 class OrbitExperiment:
     """The orbit truth-model test as a :class:`kfcal_helpers.montecarlo.Experiment`.
 
-    setup : FilterSetup (its params are the truth model's); n_runs : the runs the total holds;
+    setup : FilterSetup (its params are the truth model's); n_runs : None, or the only runs this experiment
+    may run (the core gives ``empty`` the runs it runs; None: any);
     alpha : of the result; every : keep the measurements of every ``every``-th step; integrator : of the
     truth: "rk4" (default; the vectorised fixed-step RK4, within 1e-7 km of "solve_ivp" on the same draws,
     ``tests/test_orbit_model.py``, at a fraction of its cost) or "solve_ivp"
     """
 
-    def __init__(self, setup: FilterSetup, n_runs: int, alpha: float = 0.05, every: int = 1,
+    def __init__(self, setup: FilterSetup, n_runs: int | None = None, alpha: float = 0.05, every: int = 1,
                  integrator: str = "rk4"):
         self.setup = require_instance("setup", setup, FilterSetup)
-        self.n_runs = require_int("n_runs", n_runs, minimum=1)
+        self.n_runs = None if n_runs is None else require_int("n_runs", n_runs, minimum=1)
         self.alpha = require_significance("alpha", alpha)
         self.every = require_int("every", every, minimum=1)
         self.integrator = require_choice("integrator", integrator, INTEGRATORS)
@@ -117,30 +118,31 @@ class OrbitExperiment:
         scale = self.K / 1401
         return scale * (_SECONDS_PER_RUN[self.setup.filter] * n_runs + _SECONDS_PER_CHUNK * -(-n_runs // CHUNK_SIZE))
 
+    def what(self) -> str:
+        return f"{self.K} steps of the {self.setup.filter.upper()}"
+
     def run_chunk(self, size, rng, chunk):
         sim = simulate(self.setup.params, size, rng, every=self.every, integrator=self.integrator)
         chunk.check()
         b = run_batch(sim.y, self.setup, sim.truth)
         return b.nees, b.nis, b.dof, b.errors, b.sigma2
 
-    def empty(self):
-        n, K = self.n_runs, self.K
+    def empty(self, n_runs):
+        if self.n_runs is not None and n_runs != self.n_runs:
+            raise ValueError(f"n_runs: the experiment holds {self.n_runs} runs, {n_runs} asked")
+        n, K = n_runs, self.K
         return {"n": 0, "nees": np.empty((n, K)), "nis": np.empty((n, K)), "dof": np.empty((n, K), dtype=int),
                 "errors": np.empty((n, K, N_STATES)), "sigma2": np.empty((n, K, N_STATES))}
 
     def add(self, total, partial):
         start = total["n"]
         stop = start + partial[0].shape[0]
-        if stop > self.n_runs:
-            raise ValueError(f"n_runs: the experiment holds {self.n_runs} runs, more ran")
         for key, part in zip(("nees", "nis", "dof", "errors", "sigma2"), partial):
             total[key][start:stop] = part
         total["n"] = stop
         return total
 
     def result(self, total, n_runs, seconds) -> MonteCarloResult:
-        if total["n"] != n_runs or n_runs != self.n_runs:
-            raise ValueError(f"n_runs: the experiment holds {self.n_runs} runs; {total['n']} ran, {n_runs} asked")
         p = self.setup.params
         return MonteCarloResult(self.setup.filter, n_runs, self.alpha, p.t, total["nees"], total["nis"],
                                 total["dof"], total["errors"], total["sigma2"], seconds)
@@ -166,5 +168,4 @@ def truth_model_test(params: OrbitParams | None = None, n_runs: int = 50, seed=0
         raise ValueError("setup: give either a FilterSetup or params and filter settings, not both")
     setup = require_instance("setup", setup, FilterSetup)
     exp = OrbitExperiment(setup, n_runs, alpha, every, integrator)
-    return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=f"{setup.filter.upper()} truth-model test",
-                    what=f"{exp.K} steps of the {setup.filter.upper()}")
+    return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=f"{setup.filter.upper()} truth-model test")
