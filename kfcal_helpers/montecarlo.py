@@ -55,7 +55,7 @@ import numpy as np
 from .progress import progress_bar
 from .validation import MAX_COUNT, require_int, require_seed
 
-__all__ = ["MEMORY_LIMIT", "MAX_SECONDS", "BASE_BYTES", "Experiment", "Chunk", "Cancelled", "Estimate", "default_workers",
+__all__ = ["MEMORY_LIMIT", "MAX_SECONDS", "BASE_BYTES", "Experiment", "ArrayExperiment", "Chunk", "Cancelled", "Estimate", "default_workers",
            "chunk_sizes", "chunk_generators", "estimate", "run"]
 
 MEMORY_LIMIT = 500e6  #: bytes, the estimated peak memory (resident) a run may need
@@ -118,6 +118,86 @@ class Experiment(Protocol):
     def add(self, total: Any, partial: Any) -> Any: ...
 
     def result(self, total: Any, n_runs: int, seconds: float) -> Any: ...
+
+
+class ArrayExperiment:
+    """Defaults for an :class:`Experiment` whose running total is numpy arrays declared by shape.
+
+    A subclass declares
+
+    ``keep``
+        ``"sums"``: the total holds, for every declared array, its sum over the runs (``run_chunk``
+        returns the chunk's sums); ``"runs"``: the total holds every run's arrays, ``(n_runs, *shape)``,
+        filled in chunk order (``run_chunk`` returns the chunk's ``(size, *shape)`` arrays).
+    ``arrays() -> {name: shape}`` or ``{name: (shape, dtype)}``
+        The arrays (dtype float64 unless given; with ``"runs"``, the shape of one run's).
+    ``CHUNK_SIZE``, ``CHUNK_BYTES_PER_RUN``, ``SECONDS_PER_RUN``
+        Realizations per chunk; bytes one realization of a chunk in flight needs (draws, filtering,
+        temporaries, measured and rounded up); one-thread seconds per realization.  Or override
+        :meth:`chunk_size`, :meth:`chunk_bytes` and :meth:`seconds`.
+
+    and writes ``run_chunk(size, rng, chunk)`` (returning a dict, or a tuple in the order of
+    ``arrays()``) and ``result(total, n_runs, seconds)``, ``total`` a dict name -> array.  It gets
+    ``empty(n_runs)`` and ``add`` (sums added, or runs written, in chunk order), ``fixed_bytes`` (the
+    interpreter, :data:`BASE_BYTES`, plus the declared arrays: times ``n_runs`` with ``"runs"``) and
+    ``final_bytes`` (0: override when the result's statistics need memory).
+    """
+
+    keep = "sums"
+
+    def arrays(self) -> dict:
+        raise NotImplementedError("an ArrayExperiment declares arrays(): {name: shape or (shape, dtype)}")
+
+    def _declared(self) -> dict:
+        out = {}
+        for name, spec in self.arrays().items():
+            shape, dtype = spec if len(spec) == 2 and isinstance(spec[0], tuple) else (spec, float)
+            out[name] = (tuple(shape), np.dtype(dtype))
+        return out
+
+    def _array_bytes(self) -> int:
+        return sum(int(np.prod(shape, dtype=np.int64)) * dtype.itemsize for shape, dtype in self._declared().values())
+
+    def chunk_size(self) -> int:
+        return self.CHUNK_SIZE
+
+    def fixed_bytes(self, n_runs: int) -> float:
+        return BASE_BYTES + self._array_bytes() * (n_runs if self.keep == "runs" else 1)
+
+    def chunk_bytes(self, size: int) -> float:
+        return self.CHUNK_BYTES_PER_RUN * size + (self._array_bytes() if self.keep == "sums" else 0)
+
+    def final_bytes(self, n_runs: int) -> float:
+        return 0.0
+
+    def seconds(self, n_runs: int) -> float:
+        return self.SECONDS_PER_RUN * n_runs
+
+    def empty(self, n_runs: int) -> dict:
+        if self.keep not in ("sums", "runs"):
+            raise ValueError(f"keep must be 'sums' or 'runs', got {self.keep!r}")
+        if self.keep == "sums":
+            return _Total((name, np.zeros(shape, dtype)) for name, (shape, dtype) in self._declared().items())
+        return _Total((name, np.empty((n_runs, *shape), dtype)) for name, (shape, dtype) in self._declared().items())
+
+    def add(self, total: dict, partial) -> dict:
+        parts = partial.items() if isinstance(partial, dict) else zip(total, partial)
+        if self.keep == "sums":
+            for name, part in parts:
+                total[name] += part
+            return total
+        start = total.filled
+        for name, part in parts:
+            stop = start + part.shape[0]
+            total[name][start:stop] = part
+        total.filled = stop
+        return total
+
+
+class _Total(dict):
+    """The total of an :class:`ArrayExperiment`: name -> array, and ``filled``, the runs written."""
+
+    filled = 0
 
 
 class Cancelled(Exception):

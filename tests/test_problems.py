@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import kfcal_helpers
+from kfcal_helpers import montecarlo as core
 from kfcal_helpers import problems
 from kfcal_helpers.cli import main
 from kfcal_helpers.consistency import Check, format_checks
@@ -71,43 +72,26 @@ class ToyResult:
         return out
 
 
-class ToyExperiment:
+class ToyExperiment(core.ArrayExperiment):
     """A toy problem's Monte Carlo for the shared core: ``N(bias, I_3)`` errors of a 3-state estimate,
     chunks of 64 realizations, running sums of the errors, their squares and their NEES."""
+
+    keep, CHUNK_SIZE, CHUNK_BYTES_PER_RUN, SECONDS_PER_RUN = "sums", 64, 200.0, 1e-6
 
     def __init__(self, bias=0.0, alpha=0.05):
         self.bias, self.alpha = bias, alpha
 
-    def chunk_size(self):
-        return 64
-
-    def fixed_bytes(self, n_runs):
-        return 1e6
-
-    def chunk_bytes(self, size):
-        return 200.0 * size
-
-    def final_bytes(self, n_runs):
-        return 1e3
-
-    def seconds(self, n_runs):
-        return 1e-6 * n_runs
+    def arrays(self):
+        return {"s": (3,), "ss": (3,), "nees": ()}
 
     def run_chunk(self, size, rng, chunk):
         e = self.bias + rng.standard_normal((size, 3))
-        chunk.tick(size)
-        return size, e.sum(0), (e**2).sum(0), (e**2).sum()
+        return e.sum(0), (e**2).sum(0), (e**2).sum()
 
-    def empty(self, n_runs):
-        return [0, np.zeros(3), np.zeros(3), 0.0]
-
-    def add(self, total, part):
-        return [t + p for t, p in zip(total, part)]
-
-    def result(self, total, n_runs, seconds):
-        n, s, ss, nees = total
-        mean = s / n
-        return ToyResult(n, self.alpha, seconds, mean, (ss - n * mean**2) / (n - 1), nees / n, self.bias)
+    def result(self, total, n, seconds):
+        mean = total["s"] / n
+        return ToyResult(n, self.alpha, seconds, mean, (total["ss"] - n * mean**2) / (n - 1), total["nees"] / n,
+                         self.bias)
 
 
 TOY = Problem(name="toy", title="a toy problem", add_cli=_toy_cli,
@@ -163,7 +147,6 @@ def test_the_toy_monte_carlo_runs_through_the_shared_core():
     """A third problem's Monte Carlo is an Experiment for kfcal_helpers.montecarlo.run: seeds, threads,
     chunk order and the estimate come from the core, its result offers the shared interface, its bands
     come from consistency, and format_checks prints it."""
-    from kfcal_helpers import montecarlo as core
     from kfcal_helpers.consistency import MonteCarloSummary
 
     assert isinstance(ToyExperiment(), core.Experiment)

@@ -172,19 +172,18 @@ def _mean_std(errors):
 
 
 # Memory of a test, bytes (measured with tracemalloc and the peak RSS of a child process,
-# tests/test_coop_memory.py): the interpreter (the core's BASE_BYTES); the
-# float64 values kept per run and step (NEES, NIS, 6 errors, 6 two-sigma bounds); those of one chunk
+# tests/test_coop_memory.py): the interpreter and the per-run arrays the experiment declares (the
+# core's ArrayExperiment counts them: NEES, NIS, 6 errors, 6 two-sigma bounds per step); those of one chunk
 # in flight per run and step (its truths, measurements, the draws' temporaries and its partial
 # result); at the end, the memory of the last chunks, which the allocator may keep, and the blocks
 # of ``checks()``.
-_KEPT_PER_STEP = 14 * 8
 _CHUNK_PER_STEP = 48 * 8
 #: one-thread seconds per run of 1001 steps (2-core machine, 2026), and per chunk (the step loop)
 _SECONDS_PER_RUN = {"lkf": 1.5e-3, "ekf": 4.0e-3, "ukf": 1.0e-2}
 _SECONDS_PER_CHUNK = {"lkf": 0.05, "ekf": 0.15, "ukf": 0.25}
 
 
-class TruthModelExperiment:
+class TruthModelExperiment(core.ArrayExperiment):
     """The truth-model test as an :class:`kfcal_helpers.montecarlo.Experiment` of the shared core.
 
     A chunk of ``size`` runs draws its truths and measurements with
@@ -199,6 +198,8 @@ class TruthModelExperiment:
     every : int >= 1 -- keep the measurements of every ``every``-th step only; alpha : of the result
     """
 
+    keep = "runs"
+
     def __init__(self, setup: FilterSetup, n_runs: int | None = None, every: int = 1, alpha: float = 0.05):
         self.setup = require_instance("setup", setup, FilterSetup)
         self.n_runs = None if n_runs is None else require_int("n_runs", n_runs, minimum=1)
@@ -206,11 +207,11 @@ class TruthModelExperiment:
         self.alpha = require_significance("alpha", alpha)
         self.params = setup.params
 
-    def chunk_size(self) -> int:
-        return CHUNK_SIZE
+    CHUNK_SIZE = CHUNK_SIZE
 
-    def fixed_bytes(self, n_runs: int) -> float:
-        return core.BASE_BYTES + _KEPT_PER_STEP * self.params.n_samples * n_runs
+    def arrays(self) -> dict:
+        K = self.params.n_samples
+        return {"nees": (K,), "nis": (K,), "errors": (K, N_STATES), "sigma2": (K, N_STATES)}
 
     def chunk_bytes(self, size: int) -> float:
         return _CHUNK_PER_STEP * self.params.n_samples * size
@@ -239,16 +240,7 @@ class TruthModelExperiment:
     def empty(self, n_runs):
         if self.n_runs is not None and n_runs != self.n_runs:
             raise ValueError(f"n_runs: the experiment was made for {self.n_runs} runs, {n_runs} asked")
-        n, K = n_runs, self.params.n_samples
-        return {"n": 0, "nees": np.empty((n, K)), "nis": np.empty((n, K)), "errors": np.empty((n, K, N_STATES)),
-                "sigma2": np.empty((n, K, N_STATES))}
-
-    def add(self, total, partial):
-        i, size = total["n"], partial[0].shape[0]
-        for name, values in zip(("nees", "nis", "errors", "sigma2"), partial):
-            total[name][i:i + size] = values
-        total["n"] = i + size
-        return total
+        return super().empty(n_runs)
 
     def result(self, total, n_runs, seconds) -> MonteCarloResult:
         s = self.setup

@@ -73,17 +73,17 @@ class MonteCarloResult:
         return {"mean_error": error, **out}
 
 
-# Estimates (bytes, s): the interpreter (the core's BASE_BYTES); per run and step the
-# float64 values kept (NEES, NIS, dof, 4 errors, 4 two-sigma bounds) and those of a chunk in flight (truth,
+# Estimates (bytes, s): the interpreter and the per-run arrays the experiment declares (the core's
+# ArrayExperiment counts them: NEES, NIS, dof, 4 errors, 4 two-sigma bounds per step); per run and step those
+# of a chunk in flight (truth,
 # the dense measurements of 12 stations and their temporaries, the partial result); one-thread seconds per
 # run of 1401 steps and per chunk (the step loops), rounded up from runs on the 2-core machine.
-_KEPT_PER_STEP = 11 * 8
 _CHUNK_PER_STEP = 120 * 8
 _SECONDS_PER_RUN = {"lkf": 0.02, "ekf": 0.04, "ukf": 0.08}
 _SECONDS_PER_CHUNK = 2.0
 
 
-class OrbitExperiment:
+class OrbitExperiment(core.ArrayExperiment):
     """The orbit truth-model test as a :class:`kfcal_helpers.montecarlo.Experiment`.
 
     setup : FilterSetup (its params are the truth model's); n_runs : None, or the only runs this experiment
@@ -92,6 +92,8 @@ class OrbitExperiment:
     truth: "rk4" (default; the vectorised fixed-step RK4, within 1e-7 km of "solve_ivp" on the same draws,
     ``tests/test_orbit_model.py``, at a fraction of its cost) or "solve_ivp"
     """
+
+    keep, CHUNK_SIZE = "runs", CHUNK_SIZE
 
     def __init__(self, setup: FilterSetup, n_runs: int | None = None, alpha: float = 0.05, every: int = 1,
                  integrator: str = "rk4"):
@@ -102,11 +104,9 @@ class OrbitExperiment:
         self.integrator = require_choice("integrator", integrator, INTEGRATORS)
         self.K = setup.params.n_samples
 
-    def chunk_size(self) -> int:
-        return CHUNK_SIZE
-
-    def fixed_bytes(self, n_runs: int) -> float:
-        return core.BASE_BYTES + _KEPT_PER_STEP * self.K * n_runs
+    def arrays(self) -> dict:
+        K = self.K
+        return {"nees": (K,), "nis": (K,), "dof": ((K,), int), "errors": (K, N_STATES), "sigma2": (K, N_STATES)}
 
     def chunk_bytes(self, size: int) -> float:
         return _CHUNK_PER_STEP * self.K * size
@@ -130,17 +130,7 @@ class OrbitExperiment:
     def empty(self, n_runs):
         if self.n_runs is not None and n_runs != self.n_runs:
             raise ValueError(f"n_runs: the experiment holds {self.n_runs} runs, {n_runs} asked")
-        n, K = n_runs, self.K
-        return {"n": 0, "nees": np.empty((n, K)), "nis": np.empty((n, K)), "dof": np.empty((n, K), dtype=int),
-                "errors": np.empty((n, K, N_STATES)), "sigma2": np.empty((n, K, N_STATES))}
-
-    def add(self, total, partial):
-        start = total["n"]
-        stop = start + partial[0].shape[0]
-        for key, part in zip(("nees", "nis", "dof", "errors", "sigma2"), partial):
-            total[key][start:stop] = part
-        total["n"] = stop
-        return total
+        return super().empty(n_runs)
 
     def result(self, total, n_runs, seconds) -> MonteCarloResult:
         p = self.setup.params
