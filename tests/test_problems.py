@@ -59,17 +59,13 @@ class ToyResult:
     def checks(self):
         from kfcal_helpers.consistency import chi2_bounds, t_band, variance_band
 
-        N, a, out = self.n_runs, self.alpha, {}
-        for name, stat, expected, band in (
-                ("mean_error", self.mean, np.zeros(3), lambda level: (-t_band(np.sqrt(self.var), N, level),
-                                                                     t_band(np.sqrt(self.var), N, level))),
-                ("variance", self.var, np.ones(3), lambda level: variance_band(np.ones(3), N - 1, level)),
-                ("nees", np.array([self.nees]), np.array([3.0]),
-                 lambda level: tuple(np.array([b]) for b in chi2_bounds(3, N, level)))):
-            lo, hi = band(a)
-            slo, shi = band(a / 3 / stat.size)
-            out[name] = Check(name, f"toy {name}", stat, expected, lo, hi, slo, shi)
-        return out
+        N, a, sd = self.n_runs, self.alpha, np.sqrt(self.var)
+        bands = {"mean_error": (self.mean, 0.0, lambda level: (-t_band(sd, N, level), t_band(sd, N, level))),
+                 "variance": (self.var, 1.0, lambda level: variance_band(np.ones(3), N - 1, level)),
+                 "nees": (np.array([self.nees]), 3.0, lambda level: chi2_bounds(3, N, level))}
+        a_sim = Check.bonferroni(a, 3 + 3 + 1)  # one family: every entry of the three checks
+        return {name: Check.from_band(name, f"toy {name}", stat, expected, band, a, a_sim)
+                for name, (stat, expected, band) in bands.items()}
 
 
 class ToyExperiment(core.ArrayExperiment):

@@ -240,7 +240,7 @@ class MonteCarloResult:
         out = {}
         for name in CHECK_NAMES:  # one check at a time: its pointwise and simultaneous bands only
             stat, expected, lo, hi = self.band(name, self.alpha)
-            family = self.alpha / len(CHECK_NAMES) / np.size(stat)
+            family = Check.bonferroni(self.alpha, np.size(stat), n_checks=len(CHECK_NAMES))
             slo, shi = self.band(name, family)[2:]
             out[name] = Check(name, _DESCRIPTIONS[name], stat, expected, lo, hi, slo, shi)
         return out
@@ -263,9 +263,9 @@ class MonteCarloResult:
                              "so there is nothing between fixes to check")
         var = np.einsum("jaa->ja", b.e_cov)[off]
         Pkk = np.einsum("jaa->ja", b.P)[off]
-        lo, hi = variance_band(Pkk, self.n_runs - 1, self.alpha)
-        slo, shi = variance_band(Pkk, self.n_runs - 1, self.alpha / var.size)
-        return Check("between_fixes", _BETWEEN_DESCRIPTION, var, Pkk, lo, hi, slo, shi)
+        return Check.from_band("between_fixes", _BETWEEN_DESCRIPTION, var, Pkk,
+                               partial(variance_band, Pkk, self.n_runs - 1), self.alpha,
+                               Check.bonferroni(self.alpha, var.size))
 
     def all_checks(self) -> dict[str, Check]:
         """:meth:`checks`, and ``between_fixes`` (:meth:`between_fixes_check`) when the run summed the

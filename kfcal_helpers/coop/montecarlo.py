@@ -126,19 +126,14 @@ class MonteCarloResult:
             raise ValueError("n_runs must be at least 2 for the checks (an ensemble standard deviation)")
         n = self.n_runs
         has = np.isfinite(self.nis).all(axis=0)
-        n_entries = self.errors[0].size + self.nees.shape[1] + int(has.sum())
-        a_sim = self.alpha / n_entries
+        a_sim = Check.bonferroni(self.alpha, self.errors[0].size + self.nees.shape[1] + int(has.sum()))
         mean, std = _mean_std(self.errors)
         mean, std = mean.ravel(), std.ravel()
-        half, sim_half = t_band(std, n, self.alpha), t_band(std, n, a_sim)
-        out = {"mean_error": Check("mean_error", "run mean of the error, per step and state", mean,
-                                   np.zeros_like(mean), -half, half, -sim_half, sim_half)}
+        out = {"mean_error": Check.from_band("mean_error", "run mean of the error, per step and state", mean, 0.0,
+                                             lambda a: (-t_band(std, n, a), t_band(std, n, a)), self.alpha, a_sim)}
         for name, dim, values in (("nees", N_STATES, self.nees_mean), ("nis", len(self.measurements), self.nis_mean[has])):
-            lo, hi = chi2_bounds(dim, n, self.alpha)
-            slo, shi = chi2_bounds(dim, n, a_sim)
-            full = np.full(values.shape, 1.0)
-            out[name] = Check(name, f"run-averaged {name.upper()} per step", values, dim * full,
-                              lo * full, hi * full, slo * full, shi * full)
+            out[name] = Check.from_band(name, f"run-averaged {name.upper()} per step", values, dim,
+                                        partial(chi2_bounds, dim, n), self.alpha, a_sim)
         return out
 
     def summary(self) -> dict:

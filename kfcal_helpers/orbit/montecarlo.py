@@ -66,10 +66,9 @@ class MonteCarloResult:
         mean = self.errors.mean(axis=0).ravel()
         sd = self.errors.std(axis=0, ddof=1).ravel()
         out = step_checks(self.nees, self.nis, self.dof, N_STATES, self.alpha, extra_entries=mean.size)
-        a_sim = self.alpha / (mean.size + out["nees"].statistic.size + out["nis"].statistic.size)
-        half, sim_half = t_band(sd, n, self.alpha), t_band(sd, n, a_sim)
-        error = Check("mean_error", "run mean of the error, per step and state", mean, np.zeros_like(mean),
-                      -half, half, -sim_half, sim_half)
+        a_sim = Check.bonferroni(self.alpha, mean.size + out["nees"].statistic.size + out["nis"].statistic.size)
+        error = Check.from_band("mean_error", "run mean of the error, per step and state", mean, 0.0,
+                                lambda a: (-t_band(sd, n, a), t_band(sd, n, a)), self.alpha, a_sim)
         return {"mean_error": error, **out}
 
 
