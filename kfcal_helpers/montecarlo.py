@@ -263,10 +263,14 @@ def chunk_generators(chunk: int, n_runs: int, seed) -> list[tuple[int, np.random
     (``seed``: an int in [0, 2**63 - 1], None for fresh entropy, or a numpy Generator, whose
     ``spawn`` is used)."""
     sizes = chunk_sizes(chunk, n_runs)
+    return _generators(sizes, seed if isinstance(seed, np.random.Generator) else require_seed("seed", seed))
+
+
+def _generators(sizes: list[int], seed) -> list[tuple[int, np.random.Generator]]:
+    """:func:`chunk_generators` of the chunk ``sizes``, ``seed`` already checked."""
     if isinstance(seed, np.random.Generator):
         gens = seed.spawn(len(sizes))
     else:
-        seed = require_seed("seed", seed)
         gens = [np.random.Generator(np.random.PCG64DXSM(s)) for s in np.random.SeedSequence(seed).spawn(len(sizes))]
     return list(zip(sizes, gens))
 
@@ -349,14 +353,17 @@ def run(experiment: Experiment, n_runs: int, seed=0, *, workers: int | None = No
     workers : threads (default :func:`default_workers`); the result does not depend on it
     progress : show a bar over realizations (None: unless CI or KFCAL_QUIET is set)
     extra_bytes, runs_name, params_name, what, scenario_advice : passed to :func:`estimate`, which runs first
+
+    Each argument is checked once: ``seed`` here, ``n_runs``, ``workers`` and the experiment's chunk size
+    by :func:`estimate`; the problem checks its own settings when it builds the experiment.
     """
-    n_runs = require_int(runs_name, n_runs, minimum=1)
     if not isinstance(seed, np.random.Generator):
         seed = require_seed("seed", seed)
     plan = estimate(experiment, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,
                     params_name=params_name, what=what, scenario_advice=scenario_advice)
+    n_runs = int(n_runs)
     start = time.perf_counter()
-    chunks = chunk_generators(plan.chunk, n_runs, seed)
+    chunks = _generators(chunk_sizes(plan.chunk, n_runs), seed)
     cancel, lock, counter = threading.Event(), threading.Lock(), [0, 0]  # ticks by workers, ticks shown
     bar = progress_bar(n_runs, desc, progress)
     total = experiment.empty(n_runs)
