@@ -2,8 +2,11 @@
 cancellation and the memory/time estimate.
 
 A problem supplies an :class:`Experiment`: how to draw and filter one *chunk* of realizations
-into partial sums (or per-run arrays), how to add those up, and what a chunk costs.  The core
-(:func:`run`) does everything else, the same way for every problem:
+into partial sums (or per-run arrays), how to add those up, and what a chunk costs.  Subclassing
+:class:`ArrayExperiment` gives the bookkeeping for a total of declared arrays (sums or per-run
+arrays, their bytes counted from their shapes), so a problem writes ``arrays()``, ``run_chunk`` and
+``result`` and states its measured costs.  The core (:func:`run`) does everything else, the same way
+for every problem:
 
 * **Seeds (one policy).**  The ``n_runs`` realizations are split into chunks of
   ``experiment.chunk_size()`` (a function of the problem's settings only, never of the machine or
