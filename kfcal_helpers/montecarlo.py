@@ -101,7 +101,13 @@ class Experiment(Protocol):
 
     Optional, asked by :func:`estimate` for its refusals when the caller does not pass them:
     ``what() -> str`` (one realization, e.g. "1001 steps of the EKF") and ``scenario_advice() -> str``
-    (how to make one realization smaller).
+    (how to make one realization smaller).  Optional ``prepare()``: called once by :func:`run` after
+    the estimate accepted the run and before ``empty``, to compute what every chunk reads (e.g. the
+    filter's data-independent covariances and gains); building the experiment stays cheap, so that the
+    estimate comes before anything of the scenario's size exists.
+
+    The lifecycle, in :func:`run`: the estimate (``chunk_size``, the byte counts, ``seconds``), then
+    ``prepare()``, ``empty(n_runs)``, ``run_chunk`` on worker threads, ``add`` in chunk order, ``result``.
     """
 
     def chunk_size(self) -> int: ...
@@ -369,6 +375,9 @@ def run(experiment: Experiment, n_runs: int, seed=0, *, workers: int | None = No
     chunks = _generators(chunk_sizes(plan.chunk, n_runs), seed)
     cancel, lock, counter = threading.Event(), threading.Lock(), [0, 0]  # ticks by workers, ticks shown
     bar = progress_bar(n_runs, desc, progress)
+    prepare = getattr(experiment, "prepare", None)
+    if callable(prepare):
+        prepare()
     total = experiment.empty(n_runs)
 
     def show():

@@ -106,10 +106,13 @@ def test_estimate_counts_chunks_in_flight_and_refuses():
         core.estimate(slow, 5, runs_name="runs")
 
 
-def test_the_core_gives_empty_the_runs_and_asks_the_experiment_for_its_messages():
-    toy = Toy()
+def test_the_core_prepares_then_gives_empty_the_runs_and_asks_the_experiment_for_its_messages():
+    toy, calls = Toy(), []
+    toy.prepare = lambda: calls.append(hasattr(toy, "emptied_for"))
+    core.estimate(toy, 20)
+    assert calls == []  # the estimate prepares nothing
     core.run(toy, 20, 1)
-    assert toy.emptied_for == 20
+    assert toy.emptied_for == 20 and calls == [False]  # prepared once, before empty
     big = Toy(chunk=1, bytes_per_run=1e9)
     big.what = lambda: "a 3-vector"
     big.scenario_advice = lambda: "use fewer states"

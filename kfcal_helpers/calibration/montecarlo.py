@@ -619,8 +619,8 @@ class CalibrationExperiment:
 
     Built from validated settings (see :func:`run_monte_carlo`); cheap to build, so that
     :func:`estimate_run` can ask it its memory and time before anything of the scenario's size exists.
-    The data-independent part of the filter (covariances, gains) is computed in :meth:`empty`, when
-    the run starts.  Sizes in bytes, times in seconds.
+    The data-independent part of the filter (covariances, gains) is computed in :meth:`prepare`, which
+    the core calls when the run starts.  Sizes in bytes, times in seconds.
     """
 
     def __init__(self, params: CalibrationParams, *, filter: str = "batch", truth: str = "euler",
@@ -693,7 +693,9 @@ class CalibrationExperiment:
         return _SCENARIO_ADVICE
 
     # the run -----------------------------------------------------------------------------------
-    def empty(self, n_runs: int):
+    def prepare(self) -> None:
+        """The filter's covariances and gains (and with between_fixes the 200 Hz forms), which every
+        chunk reads: computed once, after the estimate accepted the run."""
         p = self.params
         m = filter_model(p, self.given_model)
         P, P_prior, S, K = covariance_sequence(p, self.missing, m)
@@ -715,6 +717,8 @@ class CalibrationExperiment:
                 k = np.tile(np.arange(r), p.n_gps)[: p.n_imu]
                 offset = c - np.einsum("jab,jb->ja", Pt[k], base)
         self.setup = _Setup(p, m, self.missing, P, P_prior, S, K, G, with_dx, self.truth, offset)
+
+    def empty(self, n_runs: int):
         return self._new_sums()
 
     def _new_sums(self):
