@@ -245,8 +245,8 @@ class TruthModelExperiment(core.ArrayExperiment):
                                 chi2_bounds(s.measurement.dim, n_runs, self.alpha), s.measurement.rows, seconds)
 
 
-def _experiment(params, n_runs, filter, alpha, every, settings) -> TruthModelExperiment:
-    return TruthModelExperiment(FilterSetup.build(filter, params, **settings), n_runs, every, alpha)
+def _experiment(params, filter, alpha, every, settings) -> TruthModelExperiment:
+    return TruthModelExperiment(FilterSetup.build(filter, params, **settings), every=every, alpha=alpha)
 
 
 def estimate_truth_model_test(params: CoopParams | None = None, n_runs: int = 50, *, filter: str = "ekf",
@@ -255,8 +255,7 @@ def estimate_truth_model_test(params: CoopParams | None = None, n_runs: int = 50
     """The memory and time estimate of :func:`truth_model_test` with these arguments, before it runs
     (:func:`kfcal_helpers.montecarlo.estimate`): ValueError naming ``runs_name`` when the test would
     need more than 500 MB or more than an hour."""
-    n_runs = require_int(runs_name, n_runs, minimum=1)
-    exp = _experiment(params, n_runs, filter, 0.05, every, settings)
+    exp = _experiment(params, filter, 0.05, every, settings)
     return core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name)
 
 
@@ -292,7 +291,7 @@ def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0,
     """
     n_runs = require_int("n_runs", n_runs, minimum=1)
     alpha = require_significance("alpha", alpha)
-    exp = _experiment(params, n_runs, filter, alpha, every, settings)
+    exp = _experiment(params, filter, alpha, every, settings)
     desc = desc or f"{exp.setup.filter.upper()} truth-model test"
     return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=desc)
 

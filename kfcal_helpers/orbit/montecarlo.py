@@ -156,5 +156,5 @@ def truth_model_test(params: OrbitParams | None = None, n_runs: int = 50, seed=0
     elif params is not None or settings:
         raise ValueError("setup: give either a FilterSetup or params and filter settings, not both")
     setup = require_instance("setup", setup, FilterSetup)
-    exp = OrbitExperiment(setup, n_runs, alpha, every, integrator)
+    exp = OrbitExperiment(setup, alpha=alpha, every=every, integrator=integrator)
     return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=f"{setup.filter.upper()} truth-model test")
