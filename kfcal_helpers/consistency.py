@@ -124,15 +124,13 @@ def step_checks(nees, nis, dof, n_states: int, alpha: float = 0.05, extra_entrie
     has = count > 0
     total = dof.sum(axis=0)[has]
     nis_mean = np.where(present, nis, 0.0).sum(axis=0)[has] / count[has]
-    a_sim = alpha / (nees.shape[1] + int(has.sum()) + extra_entries)
+    a_sim = Check.bonferroni(alpha, nees.shape[1] + int(has.sum()) + extra_entries)
     out = {}
     for name, values, d, n, what in (
             ("nees", nees.mean(axis=0), np.full(nees.shape[1], n_states * n_runs), np.full(nees.shape[1], n_runs),
              f"run-averaged NEES per step ({n_states} dof per run)"),
             ("nis", nis_mean, total, count[has], "run-averaged NIS per step (the dof present at each step)")):
-        lo, hi = chi2_sum_bounds(d, n, alpha)
-        slo, shi = chi2_sum_bounds(d, n, a_sim)
-        out[name] = Check(name, what, values, d / n, lo, hi, slo, shi)
+        out[name] = Check.from_band(name, what, values, d / n, partial(chi2_sum_bounds, d, n), alpha, a_sim)
     return out
 
 
@@ -318,6 +316,32 @@ class Check:
     def passed(self) -> bool:
         """Pass when every entry is inside the simultaneous band (``worst <= 1``)."""
         return self.worst <= 1.0
+
+    @classmethod
+    def from_band(cls, name: str, description: str, statistic, expected, band, alpha: float,
+                  sim_alpha: float) -> "Check":
+        """The one way a problem builds a check: ``statistic`` against ``expected`` with its bands
+        ``band(level) -> (lower, upper)`` (one of this module's bands) at ``alpha`` (pointwise) and at
+        ``sim_alpha`` (simultaneous, from :meth:`bonferroni`); ``expected`` and the bounds are
+        broadcast to the statistic's shape, as float64."""
+        shape = np.shape(statistic)
+        lo, hi = band(alpha)
+        slo, shi = band(sim_alpha)
+        full = [np.broadcast_to(np.asarray(v, dtype=float), shape) for v in (expected, lo, hi, slo, shi)]
+        return cls(name, description, statistic, *full)
+
+    @staticmethod
+    def bonferroni(alpha: float, entries: int, n_checks: int = 1) -> float:
+        """Per-entry significance of a simultaneous band: ``alpha / n_checks / entries``, so that a
+        consistent filter leaves some entry outside with probability at most ``alpha`` (union bound).
+
+        The course's policy, for every new problem: the checks of a test are one family, ``entries``
+        their total number of entries and ``n_checks`` 1 (coop, orbit, :func:`step_checks`).
+        Calibration instead gives each of its seven checks an equal share ``alpha / 7``, split over
+        that check's own entries (``n_checks=7``, ``entries`` the check's); its notebooks' printed
+        verdicts rest on that split, so it is kept.
+        """
+        return alpha / n_checks / entries
 
 
 @runtime_checkable

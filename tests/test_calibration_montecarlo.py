@@ -345,9 +345,10 @@ def test_estimate_bounds_the_traced_memory(params, n_runs, between, workers):
     estimate that estimate_run refuses on, with its chunks running on ``workers`` threads."""
     import tracemalloc
 
-    from kfcal_helpers.calibration.montecarlo import _BASE_BYTES, estimate_run
+    from kfcal_helpers.calibration.montecarlo import estimate_run
+    from kfcal_helpers.montecarlo import BASE_BYTES
 
-    estimate = estimate_run(params, n_runs, between_fixes=between, workers=workers)[0] - _BASE_BYTES
+    estimate = estimate_run(params, n_runs, between_fixes=between, workers=workers)[0] - BASE_BYTES
     tracemalloc.start()
     try:
         run_monte_carlo(params, n_runs, seed=0, between_fixes=between, workers=workers)

@@ -1,6 +1,8 @@
 """The sampling bands of kfcal_helpers.consistency: the formulas, their level on simulated draws, and
 argument checks naming the argument."""
 
+from functools import partial
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -126,3 +128,19 @@ def test_time_average_band_holds_for_nis_not_for_nees():
     nees_ratio = np.var(nees_avg, ddof=1) / (2 * 2 / n_steps)
     assert lo_v[0] < nis_ratio < hi_v[0]                            # about 1.0
     assert nees_ratio > hi_v[0]                                     # about 1.7
+
+
+def test_check_from_band_and_the_bonferroni_level():
+    """Check.from_band evaluates a band at the pointwise and the simultaneous level and broadcasts
+    ``expected`` and the bounds to the statistic; Check.bonferroni splits alpha over the family."""
+    from kfcal_helpers.consistency import Check, chi2_bounds
+
+    assert Check.bonferroni(0.05, 10) == 0.05 / 10 and Check.bonferroni(0.05, 10, n_checks=7) == 0.05 / 7 / 10
+    stat = np.array([1.5, 2.5, 9.0])
+    c = Check.from_band("nees", "d", stat, 2, partial(chi2_bounds, 2, 20), 0.05, Check.bonferroni(0.05, 3))
+    lo, hi = chi2_bounds(2, 20, 0.05)
+    slo, shi = chi2_bounds(2, 20, 0.05 / 3)
+    assert c.expected.dtype == float and list(c.expected) == [2.0] * 3
+    assert list(c.lower) == [lo] * 3 and list(c.upper) == [hi] * 3
+    assert list(c.sim_lower) == [slo] * 3 and list(c.sim_upper) == [shi] * 3
+    assert c.inside_fraction == 2 / 3 and not c.passed

@@ -41,12 +41,13 @@ class Toy:
             for _ in range(size):
                 chunk.tick()
         if self.stop_after is not None:
-            while not chunk.cancelled:  # a long chunk that only an interruption stops
+            while True:  # a long chunk that only an interruption stops, at its next check()
                 chunk.check()
                 threading.Event().wait(0.01)
         return size, x.sum(0), (x ** 2).sum(0)
 
-    def empty(self):
+    def empty(self, n_runs):
+        self.emptied_for = n_runs
         return [0, np.zeros(3), np.zeros(3), []]
 
     def add(self, total, part):
@@ -103,6 +104,66 @@ def test_estimate_counts_chunks_in_flight_and_refuses():
     slow.seconds = lambda n: 1e4
     with pytest.raises(ValueError, match="^runs: .*h allowed"):
         core.estimate(slow, 5, runs_name="runs")
+
+
+def test_the_core_prepares_then_gives_empty_the_runs_and_asks_the_experiment_for_its_messages():
+    toy, calls = Toy(), []
+    toy.prepare = lambda: calls.append(hasattr(toy, "emptied_for"))
+    core.estimate(toy, 20)
+    assert calls == []  # the estimate prepares nothing
+    core.run(toy, 20, 1)
+    assert toy.emptied_for == 20 and calls == [False]  # prepared once, before empty
+    big = Toy(chunk=1, bytes_per_run=1e9)
+    big.what = lambda: "a 3-vector"
+    big.scenario_advice = lambda: "use fewer states"
+    with pytest.raises(ValueError, match=r"^params: a 3-vector needs about \d+ MB, .*; use fewer states$"):
+        core.estimate(big, 5)
+    with pytest.raises(ValueError, match=r"^params: one draw needs .*; use fewer states$"):  # the caller's wins
+        core.run(big, 5, what="one draw")
+
+
+class Sums(core.ArrayExperiment):
+    """Declared arrays summed over the runs (``keep = "sums"``)."""
+
+    keep, CHUNK_SIZE, CHUNK_BYTES_PER_RUN, SECONDS_PER_RUN = "sums", 7, 100.0, 1e-6
+
+    def arrays(self):
+        return {"x": (3,), "n": ((), int)}
+
+    def run_chunk(self, size, rng, chunk):
+        return {"x": rng.standard_normal((size, 3)).sum(0), "n": size}
+
+    def result(self, total, n_runs, seconds):
+        return total
+
+
+class Runs(Sums):
+    """Declared arrays of every run (``keep = "runs"``), returned as a tuple in the declared order."""
+
+    keep = "runs"
+
+    def arrays(self):
+        return {"x": (3,), "k": ((), int)}
+
+    def run_chunk(self, size, rng, chunk):
+        return rng.standard_normal((size, 3)), np.full(size, size)
+
+
+def test_array_experiment_sums_or_keeps_its_declared_arrays_and_counts_their_bytes():
+    chunks = core.chunk_generators(7, 20, 5)
+    draws = [g.standard_normal((s, 3)) for s, g in chunks]
+    for workers in (1, 2):
+        s = core.run(Sums(), 20, 5, workers=workers)
+        expected = np.zeros(3)
+        for d in draws:
+            expected += d.sum(0)
+        assert s["n"] == 20 and s["n"].dtype == int and np.array_equal(s["x"], expected)
+        r = core.run(Runs(), 20, 5, workers=workers)
+        assert np.array_equal(r["x"], np.concatenate(draws)) and list(r["k"]) == [7] * 14 + [6] * 6
+    assert isinstance(Sums(), core.Experiment) and Sums().chunk_size() == 7
+    assert Sums().fixed_bytes(10) == core.BASE_BYTES + 32 and Sums().chunk_bytes(7) == 700 + 32
+    assert Runs().fixed_bytes(10) == core.BASE_BYTES + 10 * 32 and Runs().chunk_bytes(7) == 700
+    assert Sums().final_bytes(10) == 0 and Sums().seconds(10) == pytest.approx(1e-5)
 
 
 def test_default_workers_reads_kfcal_workers(monkeypatch):

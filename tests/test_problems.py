@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import kfcal_helpers
+from kfcal_helpers import montecarlo as core
 from kfcal_helpers import problems
 from kfcal_helpers.cli import main
 from kfcal_helpers.consistency import Check, format_checks
@@ -58,56 +59,35 @@ class ToyResult:
     def checks(self):
         from kfcal_helpers.consistency import chi2_bounds, t_band, variance_band
 
-        N, a, out = self.n_runs, self.alpha, {}
-        for name, stat, expected, band in (
-                ("mean_error", self.mean, np.zeros(3), lambda level: (-t_band(np.sqrt(self.var), N, level),
-                                                                     t_band(np.sqrt(self.var), N, level))),
-                ("variance", self.var, np.ones(3), lambda level: variance_band(np.ones(3), N - 1, level)),
-                ("nees", np.array([self.nees]), np.array([3.0]),
-                 lambda level: tuple(np.array([b]) for b in chi2_bounds(3, N, level)))):
-            lo, hi = band(a)
-            slo, shi = band(a / 3 / stat.size)
-            out[name] = Check(name, f"toy {name}", stat, expected, lo, hi, slo, shi)
-        return out
+        N, a, sd = self.n_runs, self.alpha, np.sqrt(self.var)
+        bands = {"mean_error": (self.mean, 0.0, lambda level: (-t_band(sd, N, level), t_band(sd, N, level))),
+                 "variance": (self.var, 1.0, lambda level: variance_band(np.ones(3), N - 1, level)),
+                 "nees": (np.array([self.nees]), 3.0, lambda level: chi2_bounds(3, N, level))}
+        a_sim = Check.bonferroni(a, 3 + 3 + 1)  # one family: every entry of the three checks
+        return {name: Check.from_band(name, f"toy {name}", stat, expected, band, a, a_sim)
+                for name, (stat, expected, band) in bands.items()}
 
 
-class ToyExperiment:
+class ToyExperiment(core.ArrayExperiment):
     """A toy problem's Monte Carlo for the shared core: ``N(bias, I_3)`` errors of a 3-state estimate,
     chunks of 64 realizations, running sums of the errors, their squares and their NEES."""
+
+    keep, CHUNK_SIZE, CHUNK_BYTES_PER_RUN, SECONDS_PER_RUN = "sums", 64, 200.0, 1e-6
 
     def __init__(self, bias=0.0, alpha=0.05):
         self.bias, self.alpha = bias, alpha
 
-    def chunk_size(self):
-        return 64
-
-    def fixed_bytes(self, n_runs):
-        return 1e6
-
-    def chunk_bytes(self, size):
-        return 200.0 * size
-
-    def final_bytes(self, n_runs):
-        return 1e3
-
-    def seconds(self, n_runs):
-        return 1e-6 * n_runs
+    def arrays(self):
+        return {"s": (3,), "ss": (3,), "nees": ()}
 
     def run_chunk(self, size, rng, chunk):
         e = self.bias + rng.standard_normal((size, 3))
-        chunk.tick(size)
-        return size, e.sum(0), (e**2).sum(0), (e**2).sum()
+        return e.sum(0), (e**2).sum(0), (e**2).sum()
 
-    def empty(self):
-        return [0, np.zeros(3), np.zeros(3), 0.0]
-
-    def add(self, total, part):
-        return [t + p for t, p in zip(total, part)]
-
-    def result(self, total, n_runs, seconds):
-        n, s, ss, nees = total
-        mean = s / n
-        return ToyResult(n, self.alpha, seconds, mean, (ss - n * mean**2) / (n - 1), nees / n, self.bias)
+    def result(self, total, n, seconds):
+        mean = total["s"] / n
+        return ToyResult(n, self.alpha, seconds, mean, (total["ss"] - n * mean**2) / (n - 1), total["nees"] / n,
+                         self.bias)
 
 
 TOY = Problem(name="toy", title="a toy problem", add_cli=_toy_cli,
@@ -163,7 +143,6 @@ def test_the_toy_monte_carlo_runs_through_the_shared_core():
     """A third problem's Monte Carlo is an Experiment for kfcal_helpers.montecarlo.run: seeds, threads,
     chunk order and the estimate come from the core, its result offers the shared interface, its bands
     come from consistency, and format_checks prints it."""
-    from kfcal_helpers import montecarlo as core
     from kfcal_helpers.consistency import MonteCarloSummary
 
     assert isinstance(ToyExperiment(), core.Experiment)

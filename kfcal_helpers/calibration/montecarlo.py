@@ -99,7 +99,7 @@ _RULE_PARTIAL_PER_FIX2, _RULE_PARTIAL_PER_SAMPLE = 72.0, 100.0
 # Cost model of the estimate, measured (tracemalloc, VmHWM of a child, wall time) on the 2-core
 # reference machine and rounded up (tests/test_calibration_montecarlo.py and
 # tests/test_calibration_memory.py check it against tracemalloc and the child's peak):
-# * the interpreter with numpy and scipy; per IMU sample what the whole run keeps (the filter's P);
+# * the interpreter (the core's BASE_BYTES); per IMU sample what the whole run keeps (the filter's P);
 # * the sums: per fix squared, and with between_fixes per IMU sample;
 # * per chunk in flight its realizations (per IMU sample and per fix of one realization; with
 #   between_fixes the running sums of the IMU noise, and for filterpy its 200 Hz estimates) and its
@@ -107,7 +107,6 @@ _RULE_PARTIAL_PER_FIX2, _RULE_PARTIAL_PER_SAMPLE = 72.0, 100.0
 # * at the end, the statistics of the checks (per fix squared: the pairwise residual statistics; per
 #   IMU sample with between_fixes: the 200 Hz moments);
 # * seconds per IMU sample of one realization on one thread, and per fix squared.
-_BASE_BYTES = 130e6
 _FIXED_BYTES_PER_SAMPLE = 100.0
 _SUMS_BYTES_PER_FIX2 = 40.0
 _BYTES_PER_SAMPLE, _BYTES_PER_FIX = 16.0, 400.0
@@ -249,7 +248,7 @@ class MonteCarloResult:
         out = {}
         for name in names:  # one check at a time: its pointwise and simultaneous bands only
             stat, expected, lo, hi = self.band(name, self.alpha)
-            family = self.alpha / len(names) / np.size(stat)
+            family = Check.bonferroni(self.alpha, np.size(stat), n_checks=len(names))
             slo, shi = self.band(name, family)[2:]
             out[name] = Check(name, _DESCRIPTIONS[name], stat, expected, lo, hi, slo, shi)
         return out
@@ -272,9 +271,9 @@ class MonteCarloResult:
                              "so there is nothing between fixes to check")
         var = np.einsum("jaa->ja", b.e_cov)[off]
         Pkk = np.einsum("jaa->ja", b.P)[off]
-        lo, hi = variance_band(Pkk, self.n_runs - 1, self.alpha)
-        slo, shi = variance_band(Pkk, self.n_runs - 1, self.alpha / var.size)
-        return Check("between_fixes", _BETWEEN_DESCRIPTION, var, Pkk, lo, hi, slo, shi)
+        return Check.from_band("between_fixes", _BETWEEN_DESCRIPTION, var, Pkk,
+                               partial(variance_band, Pkk, self.n_runs - 1), self.alpha,
+                               Check.bonferroni(self.alpha, var.size))
 
     def all_checks(self) -> dict[str, Check]:
         """:meth:`checks`, and ``between_fixes`` (:meth:`between_fixes_check`) when the run summed the
@@ -628,8 +627,8 @@ class CalibrationExperiment:
 
     Built from validated settings (see :func:`run_monte_carlo`); cheap to build, so that
     :func:`estimate_run` can ask it its memory and time before anything of the scenario's size exists.
-    The data-independent part of the filter (covariances, gains) is computed in :meth:`empty`, when
-    the run starts.  Sizes in bytes, times in seconds.
+    The data-independent part of the filter (covariances, gains) is computed in :meth:`prepare`, which
+    the core calls when the run starts.  Sizes in bytes, times in seconds.
     """
 
     def __init__(self, params: CalibrationParams, *, filter: str = "batch", truth: str = "euler",
@@ -665,7 +664,7 @@ class CalibrationExperiment:
     def fixed_bytes(self, n_runs: int) -> float:
         """The interpreter, the filter's covariances and the sums of the whole run."""
         p = self.params
-        return (_BASE_BYTES + _FIXED_BYTES_PER_SAMPLE * p.n_imu + _SUMS_BYTES_PER_FIX2 * p.n_gps**2
+        return (core.BASE_BYTES + _FIXED_BYTES_PER_SAMPLE * p.n_imu + _SUMS_BYTES_PER_FIX2 * p.n_gps**2
                 + self._between_sums_bytes())
 
     def chunk_bytes(self, size: int) -> float:
@@ -698,8 +697,13 @@ class CalibrationExperiment:
         p = self.params
         return f"one realization of {p.n_imu} IMU samples and {p.n_gps} GPS fixes, filter {self.filter!r}"
 
+    def scenario_advice(self) -> str:
+        return _SCENARIO_ADVICE
+
     # the run -----------------------------------------------------------------------------------
-    def empty(self):
+    def prepare(self) -> None:
+        """The filter's covariances and gains (and with between_fixes the 200 Hz forms), which every
+        chunk reads: computed once, after the estimate accepted the run."""
         p = self.params
         m = filter_model(p, self.given_model)
         P, P_prior, S, K = covariance_sequence(p, self.missing, m)
@@ -721,6 +725,8 @@ class CalibrationExperiment:
                 k = np.tile(np.arange(r), p.n_gps)[: p.n_imu]
                 offset = c - np.einsum("jab,jb->ja", Pt[k], base)
         self.setup = _Setup(p, m, self.missing, P, P_prior, S, K, G, with_dx, self.truth, offset)
+
+    def empty(self, n_runs: int):
         return self._new_sums()
 
     def _new_sums(self):
@@ -765,10 +771,9 @@ class CalibrationExperiment:
         return sums, bsums
 
     def add(self, total, part):
-        if part is not None:
-            total[0].combine(part[0])
-            if total[1] is not None:
-                total[1].combine(part[1])
+        total[0].combine(part[0])
+        if total[1] is not None:
+            total[1].combine(part[1])
         return total
 
     def result(self, total, n_runs: int, seconds: float) -> MonteCarloResult:
@@ -809,7 +814,7 @@ def chunks_in_flight(params: CalibrationParams, n_runs: int, workers: int | None
     there are chunks, nor than fit in :data:`MEMORY_LIMIT` (at least 1); the core's
     :func:`kfcal_helpers.montecarlo.estimate` (ValueError when the run does not fit at all)."""
     exp = CalibrationExperiment(params, filter=filter, between_fixes=between_fixes)
-    return core.estimate(exp, n_runs, workers, what=exp.what()).in_flight
+    return core.estimate(exp, n_runs, workers).in_flight
 
 
 def estimate_run(params: CalibrationParams, n_runs: int, filter: str = "batch",
@@ -826,7 +831,7 @@ def estimate_run(params: CalibrationParams, n_runs: int, filter: str = "batch",
     require_choice("filter", filter, FILTERS)
     exp = CalibrationExperiment(params, filter=filter, between_fixes=bool(between_fixes), model=model)
     est = core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,
-                        params_name=params_name, what=exp.what(), scenario_advice=_SCENARIO_ADVICE)
+                        params_name=params_name)
     return est.peak_bytes, est.seconds
 
 
@@ -897,4 +902,4 @@ def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: s
     exp = CalibrationExperiment(params, filter=filter, truth=truth, alpha=alpha, missing=missing, model=model,
                                 between_fixes=bool(between_fixes))
     return core.run(exp, n_runs, seed, workers=workers, progress=progress, desc=f"Monte Carlo ({filter})",
-                    extra_bytes=extra_bytes, what=exp.what(), scenario_advice=_SCENARIO_ADVICE)
+                    extra_bytes=extra_bytes)

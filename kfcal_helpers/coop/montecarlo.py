@@ -126,19 +126,14 @@ class MonteCarloResult:
             raise ValueError("n_runs must be at least 2 for the checks (an ensemble standard deviation)")
         n = self.n_runs
         has = np.isfinite(self.nis).all(axis=0)
-        n_entries = self.errors[0].size + self.nees.shape[1] + int(has.sum())
-        a_sim = self.alpha / n_entries
+        a_sim = Check.bonferroni(self.alpha, self.errors[0].size + self.nees.shape[1] + int(has.sum()))
         mean, std = _mean_std(self.errors)
         mean, std = mean.ravel(), std.ravel()
-        half, sim_half = t_band(std, n, self.alpha), t_band(std, n, a_sim)
-        out = {"mean_error": Check("mean_error", "run mean of the error, per step and state", mean,
-                                   np.zeros_like(mean), -half, half, -sim_half, sim_half)}
+        out = {"mean_error": Check.from_band("mean_error", "run mean of the error, per step and state", mean, 0.0,
+                                             lambda a: (-t_band(std, n, a), t_band(std, n, a)), self.alpha, a_sim)}
         for name, dim, values in (("nees", N_STATES, self.nees_mean), ("nis", len(self.measurements), self.nis_mean[has])):
-            lo, hi = chi2_bounds(dim, n, self.alpha)
-            slo, shi = chi2_bounds(dim, n, a_sim)
-            full = np.full(values.shape, 1.0)
-            out[name] = Check(name, f"run-averaged {name.upper()} per step", values, dim * full,
-                              lo * full, hi * full, slo * full, shi * full)
+            out[name] = Check.from_band(name, f"run-averaged {name.upper()} per step", values, dim,
+                                        partial(chi2_bounds, dim, n), self.alpha, a_sim)
         return out
 
     def summary(self) -> dict:
@@ -172,20 +167,18 @@ def _mean_std(errors):
 
 
 # Memory of a test, bytes (measured with tracemalloc and the peak RSS of a child process,
-# tests/test_coop_memory.py): the interpreter with numpy, scipy, filterpy and this package; the
-# float64 values kept per run and step (NEES, NIS, 6 errors, 6 two-sigma bounds); those of one chunk
+# tests/test_coop_memory.py): the interpreter and the per-run arrays the experiment declares (the
+# core's ArrayExperiment counts them: NEES, NIS, 6 errors, 6 two-sigma bounds per step); those of one chunk
 # in flight per run and step (its truths, measurements, the draws' temporaries and its partial
 # result); at the end, the memory of the last chunks, which the allocator may keep, and the blocks
 # of ``checks()``.
-_BASE_BYTES = 150e6
-_KEPT_PER_STEP = 14 * 8
 _CHUNK_PER_STEP = 48 * 8
 #: one-thread seconds per run of 1001 steps (2-core machine, 2026), and per chunk (the step loop)
 _SECONDS_PER_RUN = {"lkf": 1.5e-3, "ekf": 4.0e-3, "ukf": 1.0e-2}
 _SECONDS_PER_CHUNK = {"lkf": 0.05, "ekf": 0.15, "ukf": 0.25}
 
 
-class TruthModelExperiment:
+class TruthModelExperiment(core.ArrayExperiment):
     """The truth-model test as an :class:`kfcal_helpers.montecarlo.Experiment` of the shared core.
 
     A chunk of ``size`` runs draws its truths and measurements with
@@ -195,22 +188,25 @@ class TruthModelExperiment:
     ``n_runs`` runs), in chunk order.
 
     setup : FilterSetup -- the filter and its settings (its ``params`` are the truth model's)
-    n_runs : int >= 1 -- the runs the total holds (pass the same to :func:`kfcal_helpers.montecarlo.run`)
+    n_runs : None, or int >= 1 -- the only runs this experiment may run (the core gives ``empty`` the
+        runs it runs; None: any)
     every : int >= 1 -- keep the measurements of every ``every``-th step only; alpha : of the result
     """
 
-    def __init__(self, setup: FilterSetup, n_runs: int, every: int = 1, alpha: float = 0.05):
+    keep = "runs"
+
+    def __init__(self, setup: FilterSetup, n_runs: int | None = None, every: int = 1, alpha: float = 0.05):
         self.setup = require_instance("setup", setup, FilterSetup)
-        self.n_runs = require_int("n_runs", n_runs, minimum=1)
+        self.n_runs = None if n_runs is None else require_int("n_runs", n_runs, minimum=1)
         self.every = require_int("every", every, minimum=1)
         self.alpha = require_significance("alpha", alpha)
         self.params = setup.params
 
-    def chunk_size(self) -> int:
-        return CHUNK_SIZE
+    CHUNK_SIZE = CHUNK_SIZE
 
-    def fixed_bytes(self, n_runs: int) -> float:
-        return _BASE_BYTES + _KEPT_PER_STEP * self.params.n_samples * n_runs
+    def arrays(self) -> dict:
+        K = self.params.n_samples
+        return {"nees": (K,), "nis": (K,), "errors": (K, N_STATES), "sigma2": (K, N_STATES)}
 
     def chunk_bytes(self, size: int) -> float:
         return _CHUNK_PER_STEP * self.params.n_samples * size
@@ -223,6 +219,9 @@ class TruthModelExperiment:
         steps = self.params.n_samples / 1001
         return steps * (_SECONDS_PER_RUN[f] * n_runs + _SECONDS_PER_CHUNK[f] * -(-n_runs // CHUNK_SIZE))
 
+    def what(self) -> str:
+        return f"{self.params.n_samples} steps of the {self.setup.filter.upper()}"
+
     def draw(self, size: int, rng: np.random.Generator) -> Simulation:
         """The truths and measurements of a chunk of ``size`` runs drawn from ``rng``."""
         return simulate(self.params, size, rng, every=self.every)
@@ -233,24 +232,12 @@ class TruthModelExperiment:
         b = run_batch(sim.y, self.setup, sim.truth)
         return b.nees, b.nis, b.errors, b.sigma2
 
-    def empty(self):
-        n, K = self.n_runs, self.params.n_samples
-        return {"n": 0, "nees": np.empty((n, K)), "nis": np.empty((n, K)), "errors": np.empty((n, K, N_STATES)),
-                "sigma2": np.empty((n, K, N_STATES))}
-
-    def add(self, total, partial):
-        i, size = total["n"], partial[0].shape[0]
-        if i + size > self.n_runs:
-            raise ValueError(f"n_runs: the experiment was made for {self.n_runs} runs, more ran")
-        for name, values in zip(("nees", "nis", "errors", "sigma2"), partial):
-            total[name][i:i + size] = values
-        total["n"] = i + size
-        return total
+    def empty(self, n_runs):
+        if self.n_runs is not None and n_runs != self.n_runs:
+            raise ValueError(f"n_runs: the experiment was made for {self.n_runs} runs, {n_runs} asked")
+        return super().empty(n_runs)
 
     def result(self, total, n_runs, seconds) -> MonteCarloResult:
-        if total["n"] != n_runs or n_runs != self.n_runs:
-            raise ValueError(f"n_runs: the experiment was made for {self.n_runs} runs, {total['n']} ran, "
-                             f"{n_runs} asked")
         s = self.setup
         return MonteCarloResult(s.filter, n_runs, self.alpha, self.every, self.params.t, total["nees"],
                                 total["nis"], total["errors"], total["sigma2"],
@@ -258,8 +245,8 @@ class TruthModelExperiment:
                                 chi2_bounds(s.measurement.dim, n_runs, self.alpha), s.measurement.rows, seconds)
 
 
-def _experiment(params, n_runs, filter, alpha, every, settings) -> TruthModelExperiment:
-    return TruthModelExperiment(FilterSetup.build(filter, params, **settings), n_runs, every, alpha)
+def _experiment(params, filter, alpha, every, settings) -> TruthModelExperiment:
+    return TruthModelExperiment(FilterSetup.build(filter, params, **settings), every=every, alpha=alpha)
 
 
 def estimate_truth_model_test(params: CoopParams | None = None, n_runs: int = 50, *, filter: str = "ekf",
@@ -268,10 +255,8 @@ def estimate_truth_model_test(params: CoopParams | None = None, n_runs: int = 50
     """The memory and time estimate of :func:`truth_model_test` with these arguments, before it runs
     (:func:`kfcal_helpers.montecarlo.estimate`): ValueError naming ``runs_name`` when the test would
     need more than 500 MB or more than an hour."""
-    n_runs = require_int(runs_name, n_runs, minimum=1)
-    exp = _experiment(params, n_runs, filter, 0.05, every, settings)
-    return core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,
-                         what=f"{exp.params.n_samples} steps of the {exp.setup.filter.upper()}")
+    exp = _experiment(params, filter, 0.05, every, settings)
+    return core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name)
 
 
 @checked(params=optional(partial(require_instance, cls=CoopParams)), n_runs=partial(require_int, minimum=1, maximum=MAX_SEED),
@@ -306,10 +291,9 @@ def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0,
     """
     n_runs = require_int("n_runs", n_runs, minimum=1)
     alpha = require_significance("alpha", alpha)
-    exp = _experiment(params, n_runs, filter, alpha, every, settings)
+    exp = _experiment(params, filter, alpha, every, settings)
     desc = desc or f"{exp.setup.filter.upper()} truth-model test"
-    return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=desc,
-                    what=f"{exp.params.n_samples} steps of the {exp.setup.filter.upper()}")
+    return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=desc)
 
 
 @checked(params=optional(partial(require_instance, cls=CoopParams)), n_runs=partial(require_int, minimum=1, maximum=MAX_SEED),

@@ -100,7 +100,7 @@ def _repetitions(setup: FilterSetup, n_runs: int, seeds: list, alpha: float) -> 
         for k in range(len(group)):
             exp = TruthModelExperiment(setup, n_runs, 1, alpha)
             part = slice(k * n_runs, (k + 1) * n_runs)
-            total = exp.add(exp.empty(), (b.nees[part], b.nis[part], b.errors[part], b.sigma2[part]))
+            total = exp.add(exp.empty(n_runs), (b.nees[part], b.nis[part], b.errors[part], b.sigma2[part]))
             out.append(exp.result(total, n_runs, 0.0).checks())
     return out
 

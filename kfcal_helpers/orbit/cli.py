@@ -93,10 +93,8 @@ def estimate_truth_model_test(params: OrbitParams | None, n_runs: int, *, filter
     """The memory and time estimate of :func:`~kfcal_helpers.orbit.montecarlo.truth_model_test` with these
     arguments, before it runs (:func:`kfcal_helpers.montecarlo.estimate`): ValueError naming ``runs_name``
     when the test would need more than 500 MB or more than an hour."""
-    n_runs = require_int(runs_name, n_runs, minimum=1)
-    exp = OrbitExperiment(FilterSetup(filter, params), n_runs, every=every)
-    return core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,
-                         what=f"{exp.K} steps of the {filter.upper()}")
+    exp = OrbitExperiment(FilterSetup(filter, params), every=every)
+    return core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name)
 
 
 def _monte_carlo(args, every: int) -> tuple[dict, str]:

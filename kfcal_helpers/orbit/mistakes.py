@@ -133,7 +133,7 @@ class MistakeExperiment(OrbitExperiment):
     #: one-thread seconds per run of 1401 steps of filterpy's EKF (measured 0.74 s, rounded up)
     SECONDS_PER_EKF_RUN = 1.5
 
-    def __init__(self, setup: FilterSetup, n_runs: int, alpha: float = 0.05, *, truth_params=None,
+    def __init__(self, setup: FilterSetup, n_runs: int | None = None, alpha: float = 0.05, *, truth_params=None,
                  ekf_class=None, wrong_visibility: bool = False):
         super().__init__(setup, n_runs, alpha)
         self.truth_params = require_instance("truth_params", truth_params, OrbitParams, allow_none=True) or setup.params
@@ -206,8 +206,7 @@ def mistake_row(mistake: str, n_runs: int | None = None, params: OrbitParams | N
     case = orbit_case(mistake, params)
     n_runs = N_RUNS if n_runs is None else require_int("n_runs", n_runs, minimum=2)
     alpha = require_significance("alpha", alpha)
-    exp = MistakeExperiment(case.pop("setup"), n_runs, alpha, **case)
-    mc = core.run(exp, n_runs, seed, progress=None, desc=f"orbit row {mistake}",
-                  what=f"{exp.K} steps of the EKF")
+    exp = MistakeExperiment(case.pop("setup"), alpha=alpha, **case)
+    mc = core.run(exp, n_runs, seed, progress=None, desc=f"orbit row {mistake}")
     checks = _fixed_dof_checks(mc) if mistake == "orbit_nis_fixed_dof" else mc.checks()
     return MistakeRow("orbit", mistake, MISTAKES[mistake], checks, mc)

@@ -69,47 +69,46 @@ class MonteCarloResult:
         mean = self.errors.mean(axis=0).ravel()
         sd = self.errors.std(axis=0, ddof=1).ravel()
         out = step_checks(self.nees, self.nis, self.dof, N_STATES, self.alpha, extra_entries=mean.size)
-        a_sim = self.alpha / (mean.size + out["nees"].statistic.size + out["nis"].statistic.size)
-        half, sim_half = t_band(sd, n, self.alpha), t_band(sd, n, a_sim)
-        error = Check("mean_error", "run mean of the error, per step and state", mean, np.zeros_like(mean),
-                      -half, half, -sim_half, sim_half)
+        a_sim = Check.bonferroni(self.alpha, mean.size + out["nees"].statistic.size + out["nis"].statistic.size)
+        error = Check.from_band("mean_error", "run mean of the error, per step and state", mean, 0.0,
+                                lambda a: (-t_band(sd, n, a), t_band(sd, n, a)), self.alpha, a_sim)
         return {"mean_error": error, **out}
 
 
-# Estimates (bytes, s): the interpreter with numpy, scipy, filterpy and this package; per run and step the
-# float64 values kept (NEES, NIS, dof, 4 errors, 4 two-sigma bounds) and those of a chunk in flight (truth,
+# Estimates (bytes, s): the interpreter and the per-run arrays the experiment declares (the core's
+# ArrayExperiment counts them: NEES, NIS, dof, 4 errors, 4 two-sigma bounds per step); per run and step those
+# of a chunk in flight (truth,
 # the dense measurements of 12 stations and their temporaries, the partial result); one-thread seconds per
 # run of 1401 steps and per chunk (the step loops), rounded up from runs on the 2-core machine.
-_BASE_BYTES = 150e6
-_KEPT_PER_STEP = 11 * 8
 _CHUNK_PER_STEP = 120 * 8
 _SECONDS_PER_RUN = {"lkf": 0.02, "ekf": 0.04, "ukf": 0.08}
 _SECONDS_PER_CHUNK = 2.0
 
 
-class OrbitExperiment:
+class OrbitExperiment(core.ArrayExperiment):
     """The orbit truth-model test as a :class:`kfcal_helpers.montecarlo.Experiment`.
 
-    setup : FilterSetup (its params are the truth model's); n_runs : the runs the total holds;
+    setup : FilterSetup (its params are the truth model's); n_runs : None, or the only runs this experiment
+    may run (the core gives ``empty`` the runs it runs; None: any);
     alpha : of the result; every : keep the measurements of every ``every``-th step; integrator : of the
     truth: "rk4" (default; the vectorised fixed-step RK4, within 1e-7 km of "solve_ivp" on the same draws,
     ``tests/test_orbit_model.py``, at a fraction of its cost) or "solve_ivp"
     """
 
-    def __init__(self, setup: FilterSetup, n_runs: int, alpha: float = 0.05, every: int = 1,
+    keep, CHUNK_SIZE = "runs", CHUNK_SIZE
+
+    def __init__(self, setup: FilterSetup, n_runs: int | None = None, alpha: float = 0.05, every: int = 1,
                  integrator: str = "rk4"):
         self.setup = require_instance("setup", setup, FilterSetup)
-        self.n_runs = require_int("n_runs", n_runs, minimum=1, maximum=MAX_SEED)
+        self.n_runs = None if n_runs is None else require_int("n_runs", n_runs, minimum=1, maximum=MAX_SEED)
         self.alpha = require_significance("alpha", alpha)
         self.every = require_int("every", every, minimum=1, maximum=MAX_STEPS)
         self.integrator = require_choice("integrator", integrator, INTEGRATORS)
         self.K = setup.params.n_samples
 
-    def chunk_size(self) -> int:
-        return CHUNK_SIZE
-
-    def fixed_bytes(self, n_runs: int) -> float:
-        return _BASE_BYTES + _KEPT_PER_STEP * self.K * n_runs
+    def arrays(self) -> dict:
+        K = self.K
+        return {"nees": (K,), "nis": (K,), "dof": ((K,), int), "errors": (K, N_STATES), "sigma2": (K, N_STATES)}
 
     def chunk_bytes(self, size: int) -> float:
         return _CHUNK_PER_STEP * self.K * size
@@ -121,30 +120,21 @@ class OrbitExperiment:
         scale = self.K / 1401
         return scale * (_SECONDS_PER_RUN[self.setup.filter] * n_runs + _SECONDS_PER_CHUNK * -(-n_runs // CHUNK_SIZE))
 
+    def what(self) -> str:
+        return f"{self.K} steps of the {self.setup.filter.upper()}"
+
     def run_chunk(self, size, rng, chunk):
         sim = simulate(self.setup.params, size, rng, every=self.every, integrator=self.integrator)
         chunk.check()
         b = run_batch(sim.y, self.setup, sim.truth)
         return b.nees, b.nis, b.dof, b.errors, b.sigma2
 
-    def empty(self):
-        n, K = self.n_runs, self.K
-        return {"n": 0, "nees": np.empty((n, K)), "nis": np.empty((n, K)), "dof": np.empty((n, K), dtype=int),
-                "errors": np.empty((n, K, N_STATES)), "sigma2": np.empty((n, K, N_STATES))}
-
-    def add(self, total, partial):
-        start = total["n"]
-        stop = start + partial[0].shape[0]
-        if stop > self.n_runs:
-            raise ValueError(f"n_runs: the experiment holds {self.n_runs} runs, more ran")
-        for key, part in zip(("nees", "nis", "dof", "errors", "sigma2"), partial):
-            total[key][start:stop] = part
-        total["n"] = stop
-        return total
+    def empty(self, n_runs):
+        if self.n_runs is not None and n_runs != self.n_runs:
+            raise ValueError(f"n_runs: the experiment holds {self.n_runs} runs, {n_runs} asked")
+        return super().empty(n_runs)
 
     def result(self, total, n_runs, seconds) -> MonteCarloResult:
-        if total["n"] != n_runs or n_runs != self.n_runs:
-            raise ValueError(f"n_runs: the experiment holds {self.n_runs} runs; {total['n']} ran, {n_runs} asked")
         p = self.setup.params
         return MonteCarloResult(self.setup.filter, n_runs, self.alpha, p.t, total["nees"], total["nis"],
                                 total["dof"], total["errors"], total["sigma2"], seconds)
@@ -171,6 +161,5 @@ def truth_model_test(params: OrbitParams | None = None, n_runs: int = 50, seed=0
     elif params is not None or settings:
         raise ValueError("setup: give either a FilterSetup or params and filter settings, not both")
     setup = require_instance("setup", setup, FilterSetup)
-    exp = OrbitExperiment(setup, n_runs, alpha, every, integrator)
-    return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=f"{setup.filter.upper()} truth-model test",
-                    what=f"{exp.K} steps of the {setup.filter.upper()}")
+    exp = OrbitExperiment(setup, alpha=alpha, every=every, integrator=integrator)
+    return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=f"{setup.filter.upper()} truth-model test")
