@@ -1,4 +1,4 @@
-"""Exercise checks of notebooks 19-20 (orbit determination).
+"""Exercise checks of notebooks 19-22 (orbit determination).
 
 Each ``check_<topic>(answer, *, settings...)`` takes the student's answer and returns a
 :class:`~kfcal_helpers.exercises._core.Feedback` whose repr is one line: correct, or a hint at the likely
@@ -18,22 +18,27 @@ exercise   check                                       answer
 20.1       :func:`check_gravity_jacobian`              A = df/dx at a state, (4, 4)
 20.2       :func:`check_range_rate_row`                d rhodot_i/dx of one station, (4,)
 20.3       :func:`check_expm_F`                        F = expm(dT A) on the nominal, (4, 4)
+22.1       :func:`check_nis_step_band`                 run-averaged NIS band from the dof present, (2,)
+22.2       :func:`check_stacked_update`                EKF posterior mean after a 2-station update, (4,)
 =========  ==========================================  ====================================
 
-The checks live one module per lesson (``_19_model``, ``_20_linearization``), each listing its records in ``RECORDS``; this
+The checks live one module per lesson (``_19_model``, ``_20_linearization``, ``_22_ekf_ukf``), each listing its records in ``RECORDS``; this
 package re-exports every name, so ``from kfcal_helpers.orbit.exercises import check_...`` is the one
 import path.
 """
 
 from ._shared import A_X, EXPM_DT, MEAS_STATION, MEAS_T, MEAS_X, PERIOD_DX0, ROW_STATION, ROW_T, ROW_X, VIS_T, VIS_X  # noqa: F401
+from ._shared import NIS_ALPHA, NIS_ONE, NIS_TWO, UPD_P, UPD_STATIONS, UPD_T, UPD_X, UPD_Y  # noqa: F401
 from ._19_model import (PERTURBED_PERIOD, STATION_MEASUREMENT, VISIBLE_STATIONS, check_perturbed_period,  # noqa: F401
                         check_station_measurement, check_visible_stations)
 from ._19_model import RECORDS as _19_MODEL_RECORDS
 from ._20_linearization import EXPM_F, GRAVITY_JACOBIAN, RANGE_RATE_ROW, check_expm_F, check_gravity_jacobian, check_range_rate_row  # noqa: F401
 from ._20_linearization import RECORDS as _20_LINEARIZATION_RECORDS
+from ._22_ekf_ukf import NIS_STEP_BAND, STACKED_UPDATE, check_nis_step_band, check_stacked_update  # noqa: F401
+from ._22_ekf_ukf import RECORDS as _22_EKF_UKF_RECORDS
 
 __all__ = ["EXERCISES", "check_station_measurement", "check_visible_stations", "check_perturbed_period", "check_gravity_jacobian",
-           "check_range_rate_row", "check_expm_F"]
+           "check_range_rate_row", "check_expm_F", "check_nis_step_band", "check_stacked_update"]
 
 #: every exercise record of these notebooks, by id (in notebook order)
-EXERCISES = {e.id: e for e in sorted((*_19_MODEL_RECORDS, *_20_LINEARIZATION_RECORDS), key=lambda e: tuple(int(k) for k in e.id.split(".")))}
+EXERCISES = {e.id: e for e in sorted((*_19_MODEL_RECORDS, *_20_LINEARIZATION_RECORDS, *_22_EKF_UKF_RECORDS), key=lambda e: tuple(int(k) for k in e.id.split(".")))}
