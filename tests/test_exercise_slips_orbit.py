@@ -1,4 +1,4 @@
-"""The slips of the orbit exercises (19.x, 20.x), one row per exercise and slip, in the labels of the other
+"""The slips of the orbit exercises (19.x, 20.x, 22.x), one row per exercise and slip, in the labels of the other
 problems' slip rows: each check, given the right answer with that slip (a units factor, degrees for radians,
 reversed, transposed, one entry off), answers with a hint naming the slip, never "correct"; a units slip names
 the orbit exercises' units (km, km/s), not the harness's SI units.
@@ -18,9 +18,11 @@ from kfcal_helpers.orbit import exercises as ox
 from kfcal_helpers.orbit.exercises import _shared
 
 UNITS, DEGREES, REVERSED, TRANSPOSED, ENTRY = "units", "degrees", "reversed", "transposed", "entry named"
+NIS_DIM, ONE_SIDED = "NIS dof of the state", "one-sided"
 
 CHECK = {"19.1": ox.check_station_measurement, "19.2": ox.check_visible_stations, "19.3": ox.check_perturbed_period,
-         "20.1": ox.check_gravity_jacobian, "20.2": ox.check_range_rate_row, "20.3": ox.check_expm_F}
+         "20.1": ox.check_gravity_jacobian, "20.2": ox.check_range_rate_row, "20.3": ox.check_expm_F,
+         "22.1": ox.check_nis_step_band, "22.2": ox.check_stacked_update}
 
 
 def _right():
@@ -32,7 +34,8 @@ def _right():
             "19.3": np.array(2 * np.pi * (a**3 / orb.MU) ** 0.5),
             "20.1": orb.complex_step_jacobian(orb.f_complex, orb.XA),
             "20.2": orb.complex_step_jacobian(orb.rhodot_complex, orb.XR)[0],
-            "20.3": orb.taylor_expm(_shared.EXPM_DT * orb.A_nominal())}
+            "20.3": orb.taylor_expm(_shared.EXPM_DT * orb.A_nominal()),
+            "22.1": orb.nis_band(), "22.2": orb.information_correction()}
 
 
 RIGHT = _right()
@@ -45,8 +48,9 @@ def _rows():
     deg[2] = np.degrees(deg[2])
     off = r["19.1"] * [1.0, 1.0, 1.03]
     row_off = r["20.2"] * [1.0, 1.0, 1.0, 1.03]
+    n_nis = _shared.NIS_ONE + _shared.NIS_TWO
     rows = []
-    for ex in ("19.1", "19.3", "20.1", "20.2", "20.3"):
+    for ex in ("19.1", "19.3", "20.1", "20.2", "20.3", "22.2"):
         rows += [(ex, UNITS, r[ex] * 1000, "your answer is 1000 times the right one: check the units " + KM),
                  (ex, UNITS, r[ex] / 100, "your answer is 0.01 times the right one: check the units " + KM)]
     rows += [("19.1", DEGREES, deg, "your answer is in degrees"),
@@ -55,7 +59,12 @@ def _rows():
              ("20.1", TRANSPOSED, r["20.1"].T, "your matrix is transposed"),
              ("20.2", REVERSED, r["20.2"][::-1], "your entries are in reverse order"),
              ("20.2", ENTRY, row_off, "only d rhodot/dYdot is off, the rest is right"),
-             ("20.3", TRANSPOSED, r["20.3"].T, "your matrix is transposed")]
+             ("20.3", TRANSPOSED, r["20.3"].T, "your matrix is transposed"),
+             ("22.1", REVERSED, r["22.1"][::-1], "your entries are in reverse order"),
+             ("22.1", NIS_DIM, orb.nis_band(dof=4 * n_nis), orb.hint("22.1", "state_dof")),
+             ("22.1", ONE_SIDED, orb.nis_band(q=(0.05, 0.95)), orb.hint("22.1", "one_sided")),
+             ("22.2", REVERSED, r["22.2"][::-1], "your entries are in reverse order"),
+             ("22.2", ENTRY, r["22.2"] * [1.0, 1.0, 1.03, 1.0], "only Y is off, the rest is right")]
     return rows
 
 
@@ -80,7 +89,7 @@ def test_station_ids_get_no_units_or_order_slip():
 def test_the_contributing_table_lists_exactly_the_orbit_slips_tested():
     text = (Path(__file__).parents[1] / "CONTRIBUTING.md").read_text(encoding="utf-8")
     table = {ex: {s.strip() for s in slips.split(";")} - {"—"}
-             for ex, slips in re.findall(r"^\| (\d\d\.\d) \| ([^|]*) \|$", text, flags=re.M) if ex[:2] in ("19", "20")}
+             for ex, slips in re.findall(r"^\| (\d\d\.\d) \| ([^|]*) \|$", text, flags=re.M) if ex[:2] in ("19", "20", "22")}
     tested = {ex: set() for ex in ox.EXERCISES}
     for row in ROWS:
         tested[row[0]].add(row[1])

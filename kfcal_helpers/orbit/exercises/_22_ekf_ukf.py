@@ -6,7 +6,9 @@ import numpy as np
 from scipy import stats
 
 from ...exercises._core import Exercise, Feedback, distinct_mistakes
-from ...validation import require_int, require_significance
+from ...validation import (require_covariance, require_finite, require_finite_array, require_int, require_shape,
+                           require_significance)
+from ..params import N_STATES, N_STATION_MEAS
 from ..model import jacobian_C, measure
 from ._shared import PARAMS, in_km, NIS_ALPHA, NIS_ONE, NIS_TWO, NUM_ATOL, NUM_RTOL, UPD_P, UPD_STATIONS, UPD_T, UPD_X, UPD_Y
 
@@ -59,8 +61,8 @@ STACKED_UPDATE = Exercise(
     praise="the stations' rows stacked, R block diagonal and each phi residual wrapped",
     hints={
         "no_wrap": "one phi residual is close to 2 pi: wrap every phi entry of y - h(x-) to (-pi, pi] before the gain",
-        "first_only": "that update uses the first station only: stack the rows (and R blocks) of both stations",
-        "second_only": "that update uses the second station only: stack the rows (and R blocks) of both stations",
+        "first_only": "that correction uses the first station only: stack the rows (and R blocks) of both stations",
+        "second_only": "that correction uses the second station only: stack the rows (and R blocks) of both stations",
         "gain_R": "K = P- H^T S^-1 with S = H P- H^T + R; P- H^T R^-1 is the gain only with the posterior P",
         "zero_based": "those are the next stations' rows: station i sits at omegaE t + (i - 1) pi/6 (the course "
                       "counts from 1)",
@@ -81,27 +83,29 @@ def _update(x, P, t, stations, z, *, wrap=True, gain="S"):
         K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
     else:
         K = P @ H.T @ np.linalg.inv(R)
-    return x + K @ nu
+    return K @ nu
 
 
 def check_stacked_update(answer, *, x=UPD_X, P_diag=UPD_P, t: float = UPD_T, stations=UPD_STATIONS,
                          y=UPD_Y) -> Feedback:
-    """22.2: the EKF's posterior mean (4,) [X, Xdot, Y, Ydot] (km, km/s) after one update of the prior ``x``
-    (4,) with covariance ``diag(P_diag)`` by the measurements ``y`` (m, 3) [rho, rhodot, phi] of the stations
-    ``stations`` (1..12) at time ``t`` (s), R = Rtrue per station.
+    """22.2: the EKF's correction ``x+ - x- = K nu`` (4,) [X, Xdot, Y, Ydot] (km, km/s) of one update of the
+    prior ``x`` (4,) with covariance ``diag(P_diag)`` (4,) by the measurements ``y`` (m, 3) [rho, rhodot, phi]
+    (km, km/s, rad) of the stations ``stations`` (m ints in 1..12) at time ``t`` (s), R = Rtrue per station.
 
     answer : array (4,)
     """
-    x = np.array(x, dtype=float)
-    P = np.diag(np.asarray(P_diag, dtype=float))
-    z = np.array(y, dtype=float)
-    ids = np.asarray(stations, dtype=int) - 1
-    if x.shape != (4,) or P.shape != (4, 4) or z.shape != (ids.size, 3) or ids.size < 2:
-        raise ValueError("x must be (4,), P_diag (4,), y (m, 3) for m >= 2 stations")
+    x = require_shape("x", x, (N_STATES,))
+    P = require_covariance("P_diag", np.diag(require_finite_array("P_diag", P_diag, (N_STATES,))), N_STATES)
+    t = require_finite("t", t)
+    ids = np.array([require_int("stations", s, minimum=1, maximum=_P.n_stations) for s in stations]) - 1
+    if ids.size < 1 or len(set(ids.tolist())) != ids.size:
+        raise ValueError(f"stations must be distinct station ids in 1..{_P.n_stations}, got {stations!r}")
+    z = require_shape("y", y, (ids.size, N_STATION_MEAS))
     expected = _update(x, P, t, ids, z)
-    wrong = [(_update(x, P, t, ids, z, wrap=False), "no_wrap"), (_update(x, P, t, ids[:1], z[:1]), "first_only"),
-             (_update(x, P, t, ids[1:2], z[1:2]), "second_only"), (_update(x, P, t, ids, z, gain="R"), "gain_R"),
+    wrong = [(_update(x, P, t, ids, z, wrap=False), "no_wrap"), (_update(x, P, t, ids, z, gain="R"), "gain_R"),
              (_update(x, P, t, (ids + 1) % _P.n_stations, z), "zero_based")]
+    if ids.size > 1:
+        wrong += [(_update(x, P, t, ids[:1], z[:1]), "first_only"), (_update(x, P, t, ids[1:2], z[1:2]), "second_only")]
     wrong = [(v, k) for v, k in wrong if np.all(np.isfinite(v))]
     return in_km(STACKED_UPDATE.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL,
                                       atol=NUM_ATOL))

@@ -19,7 +19,7 @@ exercise   check                                       answer
 20.2       :func:`check_range_rate_row`                d rhodot_i/dx of one station, (4,)
 20.3       :func:`check_expm_F`                        F = expm(dT A) on the nominal, (4, 4)
 22.1       :func:`check_nis_step_band`                 run-averaged NIS band from the dof present, (2,)
-22.2       :func:`check_stacked_update`                EKF posterior mean after a 2-station update, (4,)
+22.2       :func:`check_stacked_update`                EKF correction K nu of a 2-station update, (4,)
 =========  ==========================================  ====================================
 
 The checks live one module per lesson (``_19_model``, ``_20_linearization``, ``_22_ekf_ukf``), each listing its records in ``RECORDS``; this
