@@ -334,3 +334,132 @@ def test_the_notebook_20_states_the_exercises_numbers():
 def test_bad_settings_raise_valueerror_naming_them(check, setting, name):
     with pytest.raises(ValueError, match=f"^{name} "):
         check(np.zeros(3), **setting)
+
+
+# ---------------------------------------------------------------------------
+# 22.1: the band from the gamma distribution (chi-square with d dof is gamma(d/2, scale 2))
+def gamma_band(dof, n, lower_q, upper_q):
+    from scipy import stats
+    return np.array([stats.gamma.ppf(lower_q, dof / 2, scale=2.0), stats.gamma.ppf(upper_q, dof / 2, scale=2.0)]) / n
+
+
+def nis_band(**kw):
+    one, two = _shared.NIS_ONE, _shared.NIS_TWO
+    dof = kw.get("dof", 3 * one + 6 * two)
+    q = kw.get("q", (0.025, 0.975))
+    return gamma_band(dof, kw.get("n", one + two), *q) * kw.get("times", 1)
+
+
+def test_22_1_accepts_the_gamma_band_of_the_dof_present():
+    fb = ex.check_run_nis_band(nis_band())
+    assert fb.correct, str(fb)
+
+
+@pytest.mark.parametrize("key", ["fixed_dof", "max_dof", "state_dof", "one_sided", "not_divided"])
+def test_22_1_names_each_mistake(key):
+    n = _shared.NIS_ONE + _shared.NIS_TWO
+    wrong = {"fixed_dof": nis_band(dof=3 * n), "max_dof": nis_band(dof=6 * n), "state_dof": nis_band(dof=4 * n),
+             "one_sided": nis_band(q=(0.05, 0.95)), "not_divided": nis_band(times=n)}[key]
+    fb = ex.check_run_nis_band(wrong)
+    assert not fb.correct and fb.message == hint("22.1", key), str(fb)
+
+
+# ---------------------------------------------------------------------------
+# 22.2: the correction in information form, x+ - x- = (P-^-1 + H^T R^-1 H)^-1 H^T R^-1 nu, with H by complex steps
+# of the measurement written with analytic functions (phi as atan(dY/dX): the same derivative as atan2)
+def stacked_c(x, t, stations):
+    return np.concatenate([measurement_c(x, t, i) for i in stations])
+
+
+def analytic_measurement(x, t, i):
+    pos, vel = station_c(t, i)
+    dX, dY = x[0] - pos.real, x[2] - pos.imag
+    dXd, dYd = x[1] - vel.real, x[3] - vel.imag
+    rho = np.sqrt(dX * dX + dY * dY)
+    return np.array([rho, (dX * dXd + dY * dYd) / rho, np.arctan(dY / dX)])
+
+
+def stacked_jacobian_cs(x, t, stations, h=1e-30):
+    cols = [np.concatenate([analytic_measurement(x + 1j * h * e, t, i) for i in stations]).imag / h for e in np.eye(4)]
+    return np.stack(cols, axis=1)
+
+
+def information_correction(stations=None, *, wrap=True, t_offset=0):
+    x, t = np.array(_shared.UPD_X), _shared.UPD_T
+    stations = list(_shared.UPD_STATIONS) if stations is None else stations
+    rows = [_shared.UPD_STATIONS.index(s) for s in stations]
+    z = np.array(_shared.UPD_Y)[rows].ravel()
+    ids = [(s - 1 + t_offset) % 12 + 1 for s in stations]
+    H = stacked_jacobian_cs(x, t, ids)
+    nu = z - stacked_c(x, t, ids)
+    if wrap:
+        nu[2::3] = (nu[2::3] + np.pi) % (2 * np.pi) - np.pi
+    Rinv = np.kron(np.eye(len(ids)), np.diag(1 / np.array([0.01, 1.0, 0.01])))
+    info = np.diag(1 / np.array(_shared.UPD_P)) + H.T @ Rinv @ H
+    return np.linalg.solve(info, H.T @ Rinv @ nu)
+
+
+def test_22_2_accepts_the_information_form_correction():
+    fb = ex.check_stacked_update(information_correction())
+    assert fb.correct, str(fb)
+
+
+@pytest.mark.parametrize("key", ["no_wrap", "first_only", "second_only", "gain_R", "zero_based"])
+def test_22_2_names_each_mistake(key):
+    if key == "gain_R":
+        x, t = np.array(_shared.UPD_X), _shared.UPD_T
+        ids = list(_shared.UPD_STATIONS)
+        H = stacked_jacobian_cs(x, t, ids)
+        nu = np.array(_shared.UPD_Y).ravel() - stacked_c(x, t, ids)
+        nu[2::3] = (nu[2::3] + np.pi) % (2 * np.pi) - np.pi
+        wrong = np.diag(_shared.UPD_P) @ H.T @ np.kron(np.eye(2), np.diag([100.0, 1.0, 100.0])) @ nu
+    else:
+        wrong = {"no_wrap": lambda: information_correction(wrap=False),
+                 "first_only": lambda: information_correction([_shared.UPD_STATIONS[0]]),
+                 "second_only": lambda: information_correction([_shared.UPD_STATIONS[1]]),
+                 "zero_based": lambda: information_correction(t_offset=1)}[key]()
+    fb = ex.check_stacked_update(wrong)
+    assert not fb.correct and fb.message == hint("22.2", key), str(fb)
+
+
+def test_22_2_the_phi_residual_of_station_4_needs_the_wrap():
+    x, t = np.array(_shared.UPD_X), _shared.UPD_T
+    raw = _shared.UPD_Y[0][2] - measurement_c(x, t, _shared.UPD_STATIONS[0])[2]
+    assert abs(raw + 2 * np.pi) < 0.01
+
+
+def test_every_listed_hint_of_22_is_tested_and_placeholders_are_unanswered():
+    tested = {"22.1": {"fixed_dof", "max_dof", "state_dof", "one_sided", "not_divided"},
+              "22.2": {"no_wrap", "first_only", "second_only", "gain_R", "zero_based"}}
+    for exercise, keys in tested.items():
+        assert set(ex.EXERCISES[exercise].hints) == keys
+    for check in (ex.check_run_nis_band, ex.check_stacked_update):
+        fb = check(...)
+        assert not fb.correct and not fb.answered
+
+
+def test_the_notebook_22_states_the_exercises_numbers():
+    from pathlib import Path
+    text = (Path(__file__).resolve().parents[1] / "notebooks" / "source" / "22_orbit_ekf_ukf.md").read_text()
+    assert "30 runs have one\nstation with a measurement and 20 have two" in text and "($\\alpha$ = 0.05)" in text
+    assert (_shared.NIS_ONE, _shared.NIS_TWO, _shared.NIS_ALPHA) == (30, 20, 0.05)
+    assert "At $t$ = 576 s stations 4 and 5" in text and (_shared.UPD_T, _shared.UPD_STATIONS) == (576.0, (4, 5))
+    assert "$\\hat x^- = [-1991.4,\\ -7.3743,\\ 6374.2,\\ -2.3039]^T$" in text
+    assert "\\operatorname{diag}(0.04,\\ 10^{-6},\\ 0.04,\\ 10^{-6})" in text and _shared.UPD_P == (0.04, 1e-6, 0.04, 1e-6)
+    assert "$y_4 = [1724.40,\\ 6.60,\\ -3.1410]^T$, $y_5 = [1735.45,\\ -7.35,\\ 0.6070]^T$" in text
+    assert _shared.UPD_X == (-1991.4, -7.3743, 6374.2, -2.3039)
+    assert _shared.UPD_Y == ((1724.40, 6.60, -3.1410), (1735.45, -7.35, 0.6070))
+
+
+@pytest.mark.parametrize("setting, name", [({"P_diag": [1.0, 1.0, 1.0, -1.0]}, "P_diag"), ({"stations": (13, 4)}, "stations"),
+                                           ({"y": np.zeros((3, 3))}, "y"), ({"t": float("nan")}, "t"),
+                                           ({"x": [1.0, 2.0]}, "x")])
+def test_22_2_bad_settings_raise_valueerror_naming_them(setting, name):
+    with pytest.raises(ValueError, match=f"^{name} "):
+        ex.check_stacked_update(np.zeros(4), **setting)
+
+
+@pytest.mark.parametrize("setting, name", [({"one": -1}, "one"), ({"one": 0, "two": 0}, "one"), ({"alpha": 1.5}, "alpha")])
+def test_22_1_bad_settings_raise_valueerror_naming_them(setting, name):
+    with pytest.raises(ValueError, match=f"^{name} "):
+        ex.check_run_nis_band(np.zeros(2), **setting)

@@ -1,4 +1,4 @@
-"""Exercise checks of the orbit-determination notebooks (19-21, 23).
+"""Exercise checks of the orbit-determination notebooks (19-23).
 
 Each ``check_<topic>(answer, *, settings...)`` takes the student's answer and returns a
 :class:`~kfcal_helpers.exercises._core.Feedback` whose repr is one line: correct, or a hint at the likely
@@ -20,17 +20,20 @@ exercise   check                                       answer
 20.3       :func:`check_expm_F`                        F = expm(dT A) on the nominal, (4, 4)
 21.1       :func:`check_nis_step_band`                 one step's NIS band, (2,)
 21.2       :func:`check_two_station_S`                 S of a two-station step, (6, 6)
+22.1       :func:`check_run_nis_band`                  run-averaged NIS band from the dof present, (2,)
+22.2       :func:`check_stacked_update`                EKF correction K nu of a 2-station update, (4,)
 23.1       :func:`check_log_nis_band`                  time-averaged NIS bounds, dof summed, (2,)
 23.2       :func:`check_step_nis_band`                 one step's NIS bounds, (2,)
 =========  ==========================================  ====================================
 
-The checks live one module per lesson (``_19_model``, ``_20_linearization``, ``_21_lkf``, ``_23_log``), each listing its records in ``RECORDS``; this
+The checks live one module per lesson (``_19_model``, ``_20_linearization``, ``_21_lkf``, ``_22_ekf_ukf``, ``_23_log``), each listing its records in ``RECORDS``; this
 package re-exports every name, so ``from kfcal_helpers.orbit.exercises import check_...`` is the one
 import path.
 """
 
 from ._shared import A_X, EXPM_DT, MEAS_STATION, MEAS_T, MEAS_X, PERIOD_DX0, ROW_STATION, ROW_T, ROW_X, VIS_T, VIS_X  # noqa: F401
 from ._shared import LOG_ALPHA, LOG_EMPTY_STEPS, LOG_ONE_STATION, LOG_TWO_STATIONS, LOG_STEP_ALPHA, LOG_STEP_STATIONS  # noqa: F401
+from ._shared import NIS_ALPHA, NIS_ONE, NIS_TWO, UPD_P, UPD_STATIONS, UPD_T, UPD_X, UPD_Y  # noqa: F401
 from ._19_model import (PERTURBED_PERIOD, STATION_MEASUREMENT, VISIBLE_STATIONS, check_perturbed_period,  # noqa: F401
                         check_station_measurement, check_visible_stations)
 from ._19_model import RECORDS as _19_MODEL_RECORDS
@@ -53,9 +56,14 @@ from ._21_lkf import (  # noqa: F401
 )
 from ._21_lkf import RECORDS as _21_LKF_RECORDS
 
+from ._22_ekf_ukf import RUN_NIS_BAND, STACKED_UPDATE, check_run_nis_band, check_stacked_update  # noqa: F401
+from ._22_ekf_ukf import RECORDS as _22_EKF_UKF_RECORDS
+
 __all__ = ["EXERCISES", "check_station_measurement", "check_visible_stations", "check_perturbed_period", "check_gravity_jacobian",
            "check_range_rate_row", "check_expm_F", "check_nis_step_band", "check_two_station_S",
-           "STEP_STATIONS", "STEP_ALPHA", "S_TIME", "S_PRIOR", "step_stations_visible", "check_log_nis_band", "check_step_nis_band"]
+           "STEP_STATIONS", "STEP_ALPHA", "S_TIME", "S_PRIOR", "step_stations_visible", "check_run_nis_band", "check_stacked_update",
+           "check_log_nis_band", "check_step_nis_band"]
 
 #: every exercise record of these notebooks, by id (in notebook order)
-EXERCISES = {e.id: e for e in sorted((*_19_MODEL_RECORDS, *_20_LINEARIZATION_RECORDS, *_21_LKF_RECORDS, *_23_LOG_RECORDS), key=lambda e: tuple(int(k) for k in e.id.split(".")))}
+EXERCISES = {e.id: e for e in sorted((*_19_MODEL_RECORDS, *_20_LINEARIZATION_RECORDS, *_21_LKF_RECORDS, *_22_EKF_UKF_RECORDS,
+                                      *_23_LOG_RECORDS), key=lambda e: tuple(int(k) for k in e.id.split(".")))}

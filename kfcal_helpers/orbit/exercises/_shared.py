@@ -59,6 +59,15 @@ def in_km(feedback: Feedback) -> Feedback:
     end = message.find(")", start)
     return replace(feedback, message=message[:start] + KM_UNITS + message[end + 1:])
 
+#: 22.1: a step of a truth-model test: runs with one station, runs with two, significance of the band
+NIS_ONE, NIS_TWO, NIS_ALPHA = 30, 20, 0.05
+#: 22.2: one EKF update: the time (s), the stations (1..12) with a measurement, the prior x- (4,) and the
+#: diagonal of P- (km, km/s), and the two stations' measurements [rho, rhodot, phi] (km, km/s, rad)
+UPD_T = 576.0
+UPD_STATIONS = (4, 5)
+UPD_X = (-1991.4, -7.3743, 6374.2, -2.3039)
+UPD_P = (0.04, 1e-6, 0.04, 1e-6)
+UPD_Y = ((1724.40, 6.60, -3.1410), (1735.45, -7.35, 0.6070))
 #: 23.1: a log's updates with one station (3 dof) and with two (6 dof), its steps without a station, and alpha
 LOG_ONE_STATION = 1200
 LOG_TWO_STATIONS = 180
