@@ -70,6 +70,16 @@ class OrbitDemoRuns:
     nis_upper: np.ndarray
     alpha: float
 
+    @property
+    def default_time(self) -> float:
+        """The time the demo shows first (s): the first step whose measurements come from two or more stations
+        (a pass seen from two places), else the first with one, else the log's start."""
+        for least in (6, 3):
+            steps = np.flatnonzero(self.dof >= least)
+            if steps.size:
+                return float(self.log.t[steps[0]])
+        return float(self.log.t[0])
+
     def result(self, filter: str, q_scale: float) -> FilterResult:
         """The run of ``filter`` ("ekf" or "ukf") with Q = ``q_scale`` Qtrue (a scale of :data:`Q_SCALES`)."""
         return self.runs[require_choice("filter", filter, ORBIT_DEMO_FILTERS), _q_key(q_scale)]
@@ -164,13 +174,15 @@ class OrbitDemo:
                 f"{100 * self.inside_share:.1f} % of {self.n_nis} steps inside; t = {self.time:.0f} s: {self.seen_text()}")
 
 
-def compute_orbit_demo(runs: OrbitDemoRuns, filter: str = "ekf", q_scale: float = 1.0, t: float = 0.0) -> OrbitDemo:
+def compute_orbit_demo(runs: OrbitDemoRuns, filter: str = "ekf", q_scale: float = 1.0, t: float | None = None) -> OrbitDemo:
     """One redraw of the demo from the precomputed ``runs``: no filtering, a selection.
 
     filter : "ekf" or "ukf"; q_scale : a scale of :data:`Q_SCALES` (Q = q_scale Qtrue); t : a sample time of the
-    log (s, to 1e-6 s), the time whose pass geometry is drawn.  Returns an :class:`OrbitDemo`.
+    log (s, to 1e-6 s), the time whose pass geometry is drawn (default ``runs.default_time``).  Returns an
+    :class:`OrbitDemo`.
     """
     require_instance("runs", runs, OrbitDemoRuns)
+    t = runs.default_time if t is None else t
     res = runs.result(filter, q_scale)
     times = res.t
     if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not np.isfinite(t):
@@ -312,7 +324,7 @@ def draw_orbit_demo(demo: OrbitDemo):
 def orbit_controls(runs: OrbitDemoRuns) -> dict:
     """The orbit demo's controls (ipywidgets), by name: ``filter`` (EKF/UKF toggle), ``q_scale`` (Q = q_scale
     Qtrue on a log slider whose stops are :data:`Q_SCALES`, default 1) and ``t`` (the time whose pass geometry
-    is drawn, s, every sample of the log of ``runs``).  They update on release."""
+    is drawn, s, every sample of the log of ``runs``; default ``runs.default_time``).  They update on release."""
     import ipywidgets as w
 
     require_instance("runs", runs, OrbitDemoRuns)
@@ -327,7 +339,7 @@ def orbit_controls(runs: OrbitDemoRuns) -> dict:
         "q_scale": w.FloatLogSlider(value=1.0, base=10, min=float(exps[0]), max=float(exps[-1]), step=1.0,
                                     readout_format="g", continuous_update=False, description="Q / Qtrue",
                                     style=style, layout=w.Layout(width="300px")),
-        "t": w.FloatSlider(value=float(times[0]), min=float(times[0]), max=float(times[-1]), step=dt,
+        "t": w.FloatSlider(value=runs.default_time, min=float(times[0]), max=float(times[-1]), step=dt,
                            readout_format=".0f", continuous_update=False, description="t [s]", style=style,
                            layout=w.Layout(width="560px")),
     }
