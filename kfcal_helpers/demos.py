@@ -2,11 +2,12 @@
 ``ipywidgets.Image``, the one-line settings and failure messages, and :class:`LiveDemo`, which puts a
 problem's controls above the image and redraws on every change.
 
-Each problem's ``demos`` module (``kfcal_helpers.calibration.demos``, ``kfcal_helpers.coop.demos``)
+Each problem's ``demos`` module (``kfcal_helpers.calibration.demos``, ``kfcal_helpers.coop.demos``,
+``kfcal_helpers.orbit.demos``)
 splits its demo into a *compute* function, which returns plain arrays in a small dataclass, and a
 figure class built once (:func:`new_figure`) whose ``update(demo)`` only replaces the data, so a redraw
 costs one render; a figure class may also offer ``draw()``, which renders its figure faster onto its
-canvas (e.g. with a :class:`CachedBackground`), and :class:`LiveDemo` then uses it.  A demo result may
+canvas (e.g. with a :class:`CachedBackground`, as :class:`DemoFigure` does), and :class:`LiveDemo` then uses it.  A demo result may
 name in ``finite_fields`` (a class attribute) the arrays that must be finite before it is drawn.  A setting that cannot be computed (e.g. a covariance losing
 positive definiteness) shows a one-line message in the image's place, never a traceback.
 """
@@ -23,7 +24,7 @@ from matplotlib.axis import Axis
 from matplotlib.figure import Figure
 from matplotlib.ticker import FixedFormatter, FixedLocator
 
-__all__ = ["NOTEBOOK_WIDTH_PX", "MIN_TEXT_PX", "new_figure", "figure_png", "smallest_text", "CachedBackground", "error_lines", "show_errors", "DEMO_FAILURES", "require_finite_demo",
+__all__ = ["NOTEBOOK_WIDTH_PX", "MIN_TEXT_PX", "new_figure", "figure_png", "smallest_text", "CachedBackground", "DemoFigure", "error_lines", "show_errors", "DEMO_FAILURES", "require_finite_demo",
            "failure_message", "describe_controls", "LiveDemo"]
 
 
@@ -239,6 +240,20 @@ class CachedBackground:
             frozen.append((ticker, locator, formatter))
             ticker.locator, ticker.formatter = FixedLocator(locs), fixed
         return frozen
+
+
+class DemoFigure:
+    """The base of the problems' demo figures: a subclass builds ``fig`` (a matplotlib Figure) and ``background``
+    (a :class:`CachedBackground` of it) once, and defines ``update(demo) -> Figure``; :meth:`draw` is the fast
+    render :class:`LiveDemo` uses."""
+
+    fig: Figure
+    background: CachedBackground
+
+    def draw(self):
+        """Render the figure onto its Agg canvas, the static artists kept from an earlier render (rendered again
+        when their key changes); returns the Figure (then ``figure_png(fig, drawn=True)``)."""
+        return self.background.draw()
 
 
 def error_lines(ax):

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..consistency import chi2_bounds
-from ..demos import CachedBackground, error_lines, new_figure, show_errors
+from ..demos import CachedBackground, DemoFigure, error_lines, new_figure, show_errors
 from ..validation import require_choice, require_instance, require_positive, require_probability
 from .data import CoopLog
 from .fast import run_filter_fast
@@ -131,7 +131,7 @@ def compute_coop_demo(log: CoopLog, filter: str = "ekf", q_scale: float | None =
                     float(np.mean(res.nis[has])), n_nis, bounds, float(np.mean(res.nees)), float(alpha))
 
 
-class CoopDemoFigure:
+class CoopDemoFigure(DemoFigure):
     """The cooperative-localization demo's figure, built once; :meth:`update` puts a new
     :class:`CoopDemo` into the same lines.  Six panels (UGV in the top row, UAV in the bottom
     row): the estimation error and the filter's +-2 sigma bounds.  :meth:`draw` renders it onto its Agg
@@ -187,10 +187,6 @@ class CoopDemoFigure:
                             f"{demo.n_nis} updates): {demo.nis_verdict} [{lo:.2f}, {hi:.2f}]")
         return self.fig
 
-    def draw(self):
-        """Render the figure onto its Agg canvas, the x axes and the legend kept from the first render; returns the Figure
-        (then ``kfcal_helpers.demos.figure_png(fig, drawn=True)``)."""
-        return self.background.draw()
 
 
 def draw_coop_demo(demo: CoopDemo):

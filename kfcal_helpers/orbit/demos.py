@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..consistency import chi2_sum_bounds
-from ..demos import CachedBackground, error_lines, new_figure, show_errors
+from ..demos import CachedBackground, DemoFigure, error_lines, new_figure, show_errors
 from ..validation import require_choice, require_instance, require_probability
 from .data import log_params
 from .filters import FilterResult, run_filter
@@ -204,7 +204,7 @@ def compute_orbit_demo(runs: OrbitDemoRuns, filter: str = "ekf", q_scale: float 
                      np.asarray(res.stations[step], dtype=int))
 
 
-class OrbitDemoFigure:
+class OrbitDemoFigure(DemoFigure):
     """The orbit demo's figure, built once; :meth:`update` puts a new :class:`OrbitDemo` into the same artists.
 
     Left: the true orbit (in 1000 km), the Earth and the 12 stations at the time shown, the stations whose measurements the
@@ -310,10 +310,6 @@ class OrbitDemoFigure:
                             f"{demo.n_nis} steps in their band")
         return self.fig
 
-    def draw(self):
-        """Render the figure onto its Agg canvas, the kept parts from the first render; returns the Figure
-        (then ``kfcal_helpers.demos.figure_png(fig, drawn=True)``)."""
-        return self.background.draw()
 
 
 def draw_orbit_demo(demo: OrbitDemo):
