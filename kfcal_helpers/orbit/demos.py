@@ -32,10 +32,10 @@ __all__ = ["ORBIT_DEMO_FILTERS", "Q_SCALES", "LIVE_FIGSIZE", "ERROR_UNITS", "Orb
 ORBIT_DEMO_FILTERS = ("ekf", "ukf")
 #: the scales of Q = q_scale * Qtrue the demo runs in advance: the stops of its Q slider (10^-2 .. 10^3)
 Q_SCALES = (0.01, 0.1, 1.0, 10.0, 100.0, 1000.0)
-#: figure size (inches, at the notebook style's 90 dpi: 819 x 468 px) of the live view: the width JupyterLab
+#: figure size (inches, at the notebook style's 90 dpi: 819 x 378 px) of the live view: the width JupyterLab
 #: gives a notebook's output in a 1280x800 browser window with the file browser open (833 px), so the image is
 #: shown pixel for pixel
-LIVE_FIGSIZE = (9.1, 5.2)
+LIVE_FIGSIZE = (9.1, 4.2)
 #: the four errors as drawn: state label, factor from the state's units (km, km/s) and the unit drawn
 ERROR_UNITS = (("X", 1e3, "m"), (r"\dot X", 1e3, "m/s"), ("Y", 1e3, "m"), (r"\dot Y", 1e3, "m/s"))
 
@@ -209,7 +209,7 @@ class OrbitDemoFigure(DemoFigure):
 
     Left: the true orbit (in 1000 km), the Earth and the 12 stations at the time shown, the stations whose measurements the
     filter used then (green) with their lines of sight to the satellite.  Right: the four estimation errors
-    (m, m/s) with the filter's +-2 sigma bounds, and the NIS of each step (dots; red outside its band) with its
+    (m, m/s; each panel labelled with its state) with the filter's +-2 sigma bounds, and the NIS of each step (dots; red outside its band) with its
     chi-square band from the dof present at that step; a vertical line marks the time shown.  :meth:`draw`
     renders onto the Agg canvas with the time axes, the orbit panel's axes, the Earth and the legend kept from
     the first render (:class:`kfcal_helpers.demos.CachedBackground`).  ``figure``: a matplotlib Figure to draw
@@ -238,7 +238,7 @@ class OrbitDemoFigure(DemoFigure):
         self.lines = []
         for ax, (label, _, unit) in zip(self.error_axes, ERROR_UNITS):
             self.lines.append(error_lines(ax))
-            ax.set_ylabel(f"${label}$ error [{unit}]")
+            ax.set_ylabel(f"${label}$ [{unit}]")
             ax.tick_params(labelbottom=False)
         self.band_lo, = self.nis_ax.plot([], [], color="0.45", lw=0.8, drawstyle="steps-mid", label="NIS band")
         self.band_hi, = self.nis_ax.plot([], [], color="0.45", lw=0.8, drawstyle="steps-mid")
@@ -333,7 +333,7 @@ def orbit_controls(runs: OrbitDemoRuns) -> dict:
                                   style={"description_width": "40px", "button_width": "70px"},
                                   layout=w.Layout(width="260px")),
         "q_scale": w.FloatLogSlider(value=1.0, base=10, min=float(exps[0]), max=float(exps[-1]), step=1.0,
-                                    readout_format="g", continuous_update=False, description="Q / Qtrue",
+                                    readout_format=".1r", continuous_update=False, description="Q / Qtrue",
                                     style=style, layout=w.Layout(width="300px")),
         "t": w.FloatSlider(value=runs.default_time, min=float(times[0]), max=float(times[-1]), step=dt,
                            readout_format=".0f", continuous_update=False, description="t [s]", style=style,
