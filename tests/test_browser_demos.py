@@ -1,4 +1,4 @@
-"""The live demos (notebooks 17 and 18) in a real browser: JupyterLab started on localhost for
+"""The live demos (notebooks 17, 18 and 24) in a real browser: JupyterLab started on localhost for
 this test, headless Chromium driven through selenium as a person would use it, in JupyterLab's
 default layout (the file browser open in the left sidebar) in a 1280x800 window (a 1280x657 page).
 
@@ -10,8 +10,8 @@ the settings override the package installs, ``lab_settings/overrides.d``) is sho
 notebook gives it (``kfcal_helpers.demos.NOTEBOOK_WIDTH_PX``) and its smallest text, in points at the
 figure's dpi (``kfcal_helpers.demos.smallest_text``), is at least ``MIN_TEXT_PX`` on screen, and that
 no control's text is cut; then press an arrow key
-on a slider and tick a checkbox with the mouse, and check that the image changes and still no
-error appears; in notebook 18 also switch to the UKF, press End on the Q slider and untick the
+on a slider and tick a checkbox with the mouse (in notebook 24, which has none: click UKF, then EKF),
+and check that the image changes and still no error appears; in notebook 18 also switch to the UKF, press End on the Q slider and untick the
 bearing UGV->UAV (where the UKF has lost positive definiteness): a figure or a one-line message,
 never a traceback.  The round trip from the key press or click to the new image (its ``load`` event,
 timed in the page) and the sizes measured are written to ``benchmarks/browser_roundtrip.json`` (a

@@ -34,7 +34,8 @@ ORBIT_DEMO_FILTERS = ("ekf", "ukf")
 Q_SCALES = (0.01, 0.1, 1.0, 10.0, 100.0, 1000.0)
 #: figure size (inches, at the notebook style's 90 dpi: 819 x 378 px) of the live view: the width JupyterLab
 #: gives a notebook's output in a 1280x800 browser window with the file browser open (833 px), so the image is
-#: shown pixel for pixel
+#: shown pixel for pixel; with the controls in two rows above it and the two-line summary under it the whole
+#: demo fits that window (tests/test_browser_demos.py)
 LIVE_FIGSIZE = (9.1, 4.2)
 #: the four errors as drawn: state label, factor from the state's units (km, km/s) and the unit drawn
 ERROR_UNITS = (("X", 1e3, "m"), (r"\dot X", 1e3, "m/s"), ("Y", 1e3, "m"), (r"\dot Y", 1e3, "m/s"))
