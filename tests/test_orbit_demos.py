@@ -182,3 +182,14 @@ def test_update_takes_only_an_orbit_demo(runs):
     with pytest.raises((TypeError, ValueError), match="demo"):
         view.update(runs)
     assert isinstance(compute_orbit_demo(runs), OrbitDemo)
+
+
+def test_notebook_24_is_a_demo_not_a_graded_lesson():
+    """Notebook 24 says ``kfcal: {graded: false}`` like the demos 17 and 18 (the nbgrader course leaves it out),
+    and has no exercises."""
+    from pathlib import Path
+
+    from kfcal_helpers.assignments import answer_cells, read_source
+
+    nb = read_source(Path(__file__).resolve().parents[1] / "notebooks" / "source" / "24_orbit_live_demo.md")
+    assert nb.metadata["kfcal"] == {"graded": False} and not answer_cells(nb)
