@@ -2,11 +2,12 @@
 ``ipywidgets.Image``, the one-line settings and failure messages, and :class:`LiveDemo`, which puts a
 problem's controls above the image and redraws on every change.
 
-Each problem's ``demos`` module (``kfcal_helpers.calibration.demos``, ``kfcal_helpers.coop.demos``)
+Each problem's ``demos`` module (``kfcal_helpers.calibration.demos``, ``kfcal_helpers.coop.demos``,
+``kfcal_helpers.orbit.demos``)
 splits its demo into a *compute* function, which returns plain arrays in a small dataclass, and a
 figure class built once (:func:`new_figure`) whose ``update(demo)`` only replaces the data, so a redraw
 costs one render; a figure class may also offer ``draw()``, which renders its figure faster onto its
-canvas (e.g. with a :class:`CachedBackground`), and :class:`LiveDemo` then uses it.  A demo result may
+canvas (e.g. with a :class:`CachedBackground`, as :class:`DemoFigure` does), and :class:`LiveDemo` then uses it.  A demo result may
 name in ``finite_fields`` (a class attribute) the arrays that must be finite before it is drawn.  A setting that cannot be computed (e.g. a covariance losing
 positive definiteness) shows a one-line message in the image's place, never a traceback.
 """
@@ -26,7 +27,7 @@ from matplotlib.ticker import FixedFormatter, FixedLocator
 
 from .validation import checked, optional, require_bool, require_finite_array, require_instance
 
-__all__ = ["NOTEBOOK_WIDTH_PX", "MIN_TEXT_PX", "new_figure", "figure_png", "smallest_text", "CachedBackground", "DEMO_FAILURES", "require_finite_demo",
+__all__ = ["NOTEBOOK_WIDTH_PX", "MIN_TEXT_PX", "new_figure", "figure_png", "smallest_text", "CachedBackground", "DemoFigure", "error_lines", "show_errors", "DEMO_FAILURES", "require_finite_demo",
            "failure_message", "describe_controls", "LiveDemo"]
 
 
@@ -254,6 +255,48 @@ class CachedBackground:
             frozen.append((ticker, locator, formatter))
             ticker.locator, ticker.formatter = FixedLocator(locs), fixed
         return frozen
+
+
+class DemoFigure:
+    """The base of the problems' demo figures: a subclass builds ``fig`` (a matplotlib Figure) and ``background``
+    (a :class:`CachedBackground` of it) once, and defines ``update(demo) -> Figure``; :meth:`draw` is the fast
+    render :class:`LiveDemo` uses."""
+
+    fig: Figure
+    background: CachedBackground
+
+    def draw(self):
+        """Render the figure onto its Agg canvas, the static artists kept from an earlier render (rendered again
+        when their key changes); returns the Figure (then ``figure_png(fig, drawn=True)``)."""
+        return self.background.draw()
+
+
+def error_lines(ax):
+    """On ``ax``: an estimation error's line (red, labelled "error") and the filter's +-2 sigma pair (black,
+    the upper one labelled), all empty; returns ``(error, up, down)`` for :func:`show_errors`."""
+    if not isinstance(ax, Axes):
+        raise ValueError(f"ax must be a matplotlib Axes, got {type(ax).__name__}")
+    err, = ax.plot([], [], color="C3", lw=0.7, label="error")
+    up, = ax.plot([], [], color="k", lw=0.8, label=r"$\pm 2\sigma$")
+    down, = ax.plot([], [], color="k", lw=0.8)
+    return err, up, down
+
+
+def show_errors(lines, t, error, sigma2, skip: int = 0) -> None:
+    """Put one state's error ``error`` (K,) and its 2 sigma ``sigma2`` (K,) against ``t`` (K,) into the
+    ``lines`` of :func:`error_lines`, and give their Axes symmetric y limits 15 % beyond the largest
+    error or bound from sample ``skip`` on (so a large prior sigma does not flatten the rest)."""
+    err, up, down = lines
+    t, error, sigma2 = (np.asarray(a, dtype=float) for a in (t, error, sigma2))
+    if not (t.ndim == 1 and error.shape == t.shape == sigma2.shape and t.size > 0):
+        raise ValueError(f"t, error and sigma2 must be (K,) arrays of one length K >= 1, got shapes "
+                         f"{t.shape}, {error.shape}, {sigma2.shape}")
+    skip = min(max(int(skip), 0), t.size - 1)
+    err.set_data(t, error)
+    up.set_data(t, sigma2)
+    down.set_data(t, -sigma2)
+    top = max(sigma2[skip:].max(), np.abs(error[skip:]).max())
+    err.axes.set_ylim(-1.15 * top, 1.15 * top)
 
 
 #: what a redraw turns into a one-line message instead of a traceback: ``numpy.linalg.LinAlgError``

@@ -1,4 +1,4 @@
-"""Checks shared by the demo tests of both problems (tests/test_*demos.py import them)."""
+"""Checks shared by the demo tests of the problems (tests/test_*demos.py import them)."""
 
 import io
 import warnings

@@ -1,4 +1,4 @@
-"""The live demos (notebooks 17 and 18) in a real browser: JupyterLab started on localhost for
+"""The live demos (notebooks 17, 18 and 24) in a real browser: JupyterLab started on localhost for
 this test, headless Chromium driven through selenium as a person would use it, in JupyterLab's
 default layout (the file browser open in the left sidebar) in a 1280x800 window (a 1280x657 page).
 
@@ -10,8 +10,8 @@ the settings override the package installs, ``lab_settings/overrides.d``) is sho
 notebook gives it (``kfcal_helpers.demos.NOTEBOOK_WIDTH_PX``) and its smallest text, in points at the
 figure's dpi (``kfcal_helpers.demos.smallest_text``), is at least ``MIN_TEXT_PX`` on screen, and that
 no control's text is cut; then press an arrow key
-on a slider and tick a checkbox with the mouse, and check that the image changes and still no
-error appears; in notebook 18 also switch to the UKF, press End on the Q slider and untick the
+on a slider and tick a checkbox with the mouse (in notebook 24, which has none: click UKF, then EKF),
+and check that the image changes and still no error appears; in notebook 18 also switch to the UKF, press End on the Q slider and untick the
 bearing UGV->UAV (where the UKF has lost positive definiteness): a figure or a one-line message,
 never a traceback.  The round trip from the key press or click to the new image (its ``load`` event,
 timed in the page) and the sizes measured are written to ``benchmarks/browser_roundtrip.json`` (a
@@ -49,7 +49,7 @@ from kfcal_helpers.coop.demos import coop_controls
 from kfcal_helpers.demos import MIN_TEXT_PX, NOTEBOOK_WIDTH_PX
 
 ROOT = Path(__file__).resolve().parents[1]
-NOTEBOOKS = {"17": "17_calibration_live_demo.ipynb", "18": "18_coop_live_demo.ipynb"}
+NOTEBOOKS = {"17": "17_calibration_live_demo.ipynb", "18": "18_coop_live_demo.ipynb", "24": "24_orbit_live_demo.ipynb"}
 BENCH_FILE = ROOT / "benchmarks" / "browser_roundtrip.json"
 FAILURES = ROOT / "build" / "browser_failures"
 WINDOW = (1280, 800)
@@ -72,7 +72,7 @@ def _free_port() -> int:
 
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory):
-    """JupyterLab on a free localhost port, serving copies of notebooks 17 and 18 (the browser's
+    """JupyterLab on a free localhost port, serving copies of notebooks 17, 18 and 24 (the browser's
     autosave never touches the committed files), with its own runtime, config and settings dirs."""
     tmp = tmp_path_factory.mktemp("jupyterlab")
     root = tmp / "root"
@@ -331,7 +331,7 @@ def _fits_window(driver, image):
     v = got["view"]
     outside = [r for r in got["rects"] if r["left"] < v["left"] - 0.5 or r["top"] < v["top"] - 0.5
                or r["right"] > v["right"] + 0.5 or r["bottom"] > v["bottom"] + 0.5]
-    assert len(got["rects"]) >= 6 and not outside, (
+    assert len(got["rects"]) >= 5 and not outside, (  # the box, its image and at least three controls
         f"demo not within the notebook's visible area {v} of the {got['window']} window: {outside}")
 
 
@@ -398,12 +398,18 @@ def _live_figure(nb):
 
         view = CalibrationDemoFigure(Figure(figsize=LIVE_FIGSIZE))
         view.update(compute_calibration_demo(outage=(12.0, 18.0)))
-    else:
+    elif nb == "18":
         from kfcal_helpers.coop import simulate
         from kfcal_helpers.coop.demos import LIVE_FIGSIZE, CoopDemoFigure, compute_coop_demo
 
         view = CoopDemoFigure(Figure(figsize=LIVE_FIGSIZE))
         view.update(compute_coop_demo(simulate().log(), "ekf"))
+    else:
+        from kfcal_helpers.orbit import simulate
+        from kfcal_helpers.orbit.demos import LIVE_FIGSIZE, OrbitDemoFigure, compute_orbit_demo, precompute_orbit_demo
+
+        view = OrbitDemoFigure(Figure(figsize=LIVE_FIGSIZE))
+        view.update(compute_orbit_demo(precompute_orbit_demo(simulate().log())))
     view.draw()
     return view.fig
 
@@ -455,7 +461,18 @@ def _readable(driver, nb, image, shots):
     return measured
 
 
+def _toggle(panel, text):
+    from selenium.webdriver.common.by import By
+
+    for button in panel.find_elements(By.CSS_SELECTOR, ".widget-toggle-button"):
+        if button.text.strip() == text:
+            return button
+    pytest.fail(f"no toggle button {text!r}")
+
+
 def _drive(driver, lab, nb, slider, checkbox, roundtrips, shots):
+    """Run the demo of notebook ``nb``, press the right arrow on ``slider`` and click ``checkbox`` twice (a
+    checkbox's description, or ``("UKF", "EKF")``: a click on each of these toggle buttons), timing each."""
     from selenium.webdriver.common.keys import Keys
 
     name = NOTEBOOKS[nb]
@@ -472,9 +489,12 @@ def _drive(driver, lab, nb, slider, checkbox, roundtrips, shots):
         handle = _slider_handle(panel, slider)
         keys = [_round_trip(driver, image, lambda: handle.send_keys(Keys.ARROW_RIGHT), f"a key press on {slider!r}")
                 for _ in range(KEY_PRESSES)]
-        box = _checkbox(panel, checkbox)
-        clicks = [_round_trip(driver, image, box.click, f"a click on {checkbox!r}") for _ in range(2)]
-        assert box.is_selected()  # unticked, then ticked again
+        if isinstance(checkbox, tuple):
+            clicks = [_round_trip(driver, image, _toggle(panel, text).click, f"a click on {text!r}") for text in checkbox]
+        else:
+            box = _checkbox(panel, checkbox)
+            clicks = [_round_trip(driver, image, box.click, f"a click on {checkbox!r}") for _ in range(2)]
+            assert box.is_selected()  # unticked, then ticked again
         if nb == "18":
             roundtrips["notebook 18: line shown for the UKF at Q / Qtrue 100 without the bearing UGV->UAV"] = \
                 _ukf_at_large_q(driver, panel, image)
@@ -497,3 +517,19 @@ def test_calibration_demo_in_the_browser(lab, browser, roundtrips, screenshots):
 def test_coop_demo_in_the_browser(lab, browser, roundtrips, screenshots):
     c = coop_controls()
     _drive(browser, lab, "18", c["q_scale"].description, c["m1"].description, roundtrips, screenshots)
+
+
+def test_orbit_demo_in_the_browser(lab, browser, roundtrips, screenshots):
+    """Notebook 24: the time slider (each key press moves the pass geometry by one 10 s step) and the
+    EKF/UKF switch."""
+    c = _orbit_descriptions()
+    _drive(browser, lab, "24", c["t"], ("UKF", "EKF"), roundtrips, screenshots)
+
+
+def _orbit_descriptions() -> dict:
+    """The orbit demo's control descriptions, by name (its controls need the precomputed runs: built on a short log)."""
+    from kfcal_helpers.orbit import OrbitParams, simulate
+    from kfcal_helpers.orbit.demos import orbit_controls, precompute_orbit_demo
+
+    runs = precompute_orbit_demo(simulate(OrbitParams(n_steps=20)).log())
+    return {name: control.description for name, control in orbit_controls(runs).items()}

@@ -1,6 +1,6 @@
 """The shared live-demo machinery (kfcal_helpers.demos) on a toy demo: the controls above the image,
 a redraw per change, and a one-line message instead of any traceback or warning.  The problems' own
-demos are tested in tests/test_calibration_demos.py and tests/test_coop_demos.py."""
+demos are tested in tests/test_calibration_demos.py, tests/test_coop_demos.py and tests/test_orbit_demos.py."""
 
 import dataclasses
 import warnings
@@ -324,3 +324,24 @@ def test_off_grid_defaults_finds_a_default_between_two_stops():
     assert found[0][2] == pytest.approx(10 ** -3.4, rel=1e-12)
     assert len(slider_stops(controls["W"])) == 41 and slider_stops(controls["on"]) is None
     assert slider_stops(controls["noise"]) == [4e-4, 5e-4]
+
+
+def test_error_lines_and_show_errors():
+    """The error panel shared by the problems' demos: the error and its +-2 sigma pair, symmetric y limits 15 %
+    beyond the largest from sample ``skip`` on, and shapes checked."""
+    from kfcal_helpers.demos import error_lines, show_errors
+
+    fig = Figure()
+    ax = fig.add_subplot()
+    lines = error_lines(ax)
+    assert [ln.get_label() for ln in lines[:2]] == ["error", r"$\pm 2\sigma$"] and all(ln.axes is ax for ln in lines)
+    t = np.arange(5.0)
+    show_errors(lines, t, np.array([9.0, 1.0, -3.0, 0.5, 0.0]), np.array([50.0, 2.0, 2.0, 2.0, 2.0]), skip=1)
+    assert ax.get_ylim() == pytest.approx((-3.45, 3.45))
+    np.testing.assert_array_equal(lines[2].get_ydata(), -np.array([50.0, 2.0, 2.0, 2.0, 2.0]))
+    show_errors(lines, t, np.zeros(5), np.ones(5), skip=99)   # a skip past the end keeps the last sample
+    assert ax.get_ylim() == pytest.approx((-1.15, 1.15))
+    with pytest.raises(ValueError, match="t, error and sigma2"):
+        show_errors(lines, t, np.zeros(4), np.ones(5))
+    with pytest.raises(ValueError, match="ax"):
+        error_lines(fig)

@@ -26,7 +26,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..consistency import chi2_bounds
-from ..demos import CachedBackground, new_figure
+from ..demos import CachedBackground, DemoFigure, new_figure
 from ..validation import (require_choice, require_finite, require_instance, require_int, require_positive,
                           require_probability)
 from .engine import (covariance_sequence, estimate_between_fixes, filter_errors_time_major, noise_of_simulation,
@@ -204,7 +204,7 @@ def compute_calibration_demo(gps_rate: float = 5.0, W: float = 0.0004, gps_pos_v
 _CAL_LABELS = (r"position error [m]", r"velocity error [m/s]", r"bias error [m/s$^2$]")
 
 
-class CalibrationDemoFigure:
+class CalibrationDemoFigure(DemoFigure):
     """The calibration demo's figure, built once; :meth:`update` puts a new
     :class:`CalibrationDemo` into the same lines (a redraw then only re-renders).
 
@@ -308,11 +308,6 @@ class CalibrationDemoFigure:
                             f"{100 * demo.inside_fraction:.1f} % of (GPS epoch, state) pairs")
         return self.fig
 
-    def draw(self):
-        """Render the figure onto its Agg canvas, the x axes, legend and note kept from the first render
-        (rendered again when they change); returns the Figure
-        (then ``kfcal_helpers.demos.figure_png(fig, drawn=True)``)."""
-        return self.background.draw()
 
 
 def draw_calibration_demo(demo: CalibrationDemo, t_zoom: float = 2.0):

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..consistency import chi2_bounds
-from ..demos import CachedBackground, new_figure
+from ..demos import CachedBackground, DemoFigure, error_lines, new_figure, show_errors
 from ..validation import require_choice, require_instance, require_positive, require_probability
 from .data import CoopLog
 from .fast import run_filter_fast
@@ -131,7 +131,7 @@ def compute_coop_demo(log: CoopLog, filter: str = "ekf", q_scale: float | None =
                     float(np.mean(res.nis[has])), n_nis, bounds, float(np.mean(res.nees)), float(alpha))
 
 
-class CoopDemoFigure:
+class CoopDemoFigure(DemoFigure):
     """The cooperative-localization demo's figure, built once; :meth:`update` puts a new
     :class:`CoopDemo` into the same lines.  Six panels (UGV in the top row, UAV in the bottom
     row): the estimation error and the filter's +-2 sigma bounds.  :meth:`draw` renders it onto its Agg
@@ -153,10 +153,7 @@ class CoopDemoFigure:
         self.axes = self.fig.subplots(2, 3, sharex=True)
         self.lines = []
         for i, ax in enumerate(self.axes.flat):
-            err, = ax.plot([], [], color="C3", lw=0.7, label="error")
-            up, = ax.plot([], [], color="k", lw=0.8, label=r"$\pm 2\sigma$")
-            down, = ax.plot([], [], color="k", lw=0.8)
-            self.lines.append((err, up, down))
+            self.lines.append(error_lines(ax))
             ax.set_ylabel(f"{'UGV' if i < 3 else 'UAV'} error {STATE_LABELS[i]}")
         for ax in self.axes[-1]:
             ax.set_xlabel("time $t$ [s]")
@@ -179,12 +176,8 @@ class CoopDemoFigure:
         """Draw ``demo`` into the figure; returns the Figure."""
         require_instance("demo", demo, CoopDemo)
         skip = min(10, demo.t.size - 1)  # the y scale ignores the first second (prior sigma)
-        for i, (ax, (err, up, down)) in enumerate(zip(self.axes.flat, self.lines)):
-            err.set_data(demo.t, demo.errors[:, i])
-            up.set_data(demo.t, demo.sigma2[:, i])
-            down.set_data(demo.t, -demo.sigma2[:, i])
-            top = max(demo.sigma2[skip:, i].max(), np.abs(demo.errors[skip:, i]).max())
-            ax.set_ylim(-1.15 * top, 1.15 * top)
+        for i, lines in enumerate(self.lines):
+            show_errors(lines, demo.t, demo.errors[:, i], demo.sigma2[:, i], skip)
         self.axes[0, 0].set_xlim(demo.t[0], demo.t[-1])
         lo, hi = demo.nis_bounds
         names = ", ".join(MEASUREMENT_NAMES[i] for i in demo.measurements)
@@ -194,10 +187,6 @@ class CoopDemoFigure:
                             f"{demo.n_nis} updates): {demo.nis_verdict} [{lo:.2f}, {hi:.2f}]")
         return self.fig
 
-    def draw(self):
-        """Render the figure onto its Agg canvas, the x axes and the legend kept from the first render; returns the Figure
-        (then ``kfcal_helpers.demos.figure_png(fig, drawn=True)``)."""
-        return self.background.draw()
 
 
 def draw_coop_demo(demo: CoopDemo):
