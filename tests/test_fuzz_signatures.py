@@ -205,7 +205,7 @@ VALID = {
     "problem": lambda: dict(name="coop"),
     # mistakes
     "all_mistakes": lambda: dict(),
-    "mistake_table": lambda: dict(mistakes=("correct",), n_runs={"calibration": 2, "coop": 2},
+    "mistake_table": lambda: dict(mistakes=("correct",), n_runs={"calibration": 2, "coop": 2, "orbit": 2},
                                   params={"calibration": CP, "coop": KP}, alpha=0.05),
     "table_checks": lambda: dict(rows=_mistake_rows()),
     "format_mistake_table": lambda: dict(rows=_mistake_rows(), checks=None),
