@@ -25,7 +25,7 @@ from matplotlib.axis import Axis
 from matplotlib.figure import Figure
 from matplotlib.ticker import FixedFormatter, FixedLocator
 
-from .validation import checked, optional, require_bool, require_finite_array, require_instance
+from .validation import checked, describe, optional, require_bool, require_finite_array, require_instance, require_int
 
 __all__ = ["NOTEBOOK_WIDTH_PX", "MIN_TEXT_PX", "new_figure", "figure_png", "smallest_text", "CachedBackground", "DemoFigure", "error_lines", "show_errors", "DEMO_FAILURES", "require_finite_demo",
            "failure_message", "describe_controls", "LiveDemo"]
@@ -271,17 +271,25 @@ class DemoFigure:
         return self.background.draw()
 
 
+@checked(ax=partial(require_instance, cls=Axes))
 def error_lines(ax):
     """On ``ax``: an estimation error's line (red, labelled "error") and the filter's +-2 sigma pair (black,
     the upper one labelled), all empty; returns ``(error, up, down)`` for :func:`show_errors`."""
-    if not isinstance(ax, Axes):
-        raise ValueError(f"ax must be a matplotlib Axes, got {type(ax).__name__}")
     err, = ax.plot([], [], color="C3", lw=0.7, label="error")
     up, = ax.plot([], [], color="k", lw=0.8, label=r"$\pm 2\sigma$")
     down, = ax.plot([], [], color="k", lw=0.8)
     return err, up, down
 
 
+def _require_error_lines(name, value):
+    from matplotlib.lines import Line2D
+    if not (isinstance(value, tuple) and len(value) == 3 and all(isinstance(v, Line2D) for v in value)):
+        raise ValueError(f"{name} must be the (error, up, down) lines of error_lines, got {describe(value)}")
+    return value
+
+
+@checked(lines=_require_error_lines, t=require_finite_array, error=require_finite_array, sigma2=require_finite_array,
+         skip=partial(require_int, minimum=0, maximum=2**31))
 def show_errors(lines, t, error, sigma2, skip: int = 0) -> None:
     """Put one state's error ``error`` (K,) and its 2 sigma ``sigma2`` (K,) against ``t`` (K,) into the
     ``lines`` of :func:`error_lines`, and give their Axes symmetric y limits 15 % beyond the largest

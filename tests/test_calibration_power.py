@@ -197,6 +197,7 @@ def test_bad_confidence_and_first(stored):
         stored.first(stored.reps + 1)
 
 
+@pytest.mark.slow  # the benchmark script in full (every stored row once): about 10 s
 def test_the_benchmark_script_regenerates_the_stored_tables(tmp_path, stored, stored4):
     # benchmarks/detection_rates.py with one repetition of two mistakes: the first repetition of the stored rows
     import runpy

@@ -87,6 +87,7 @@ def test_bad_arguments_name_themselves(kwargs, name):
         detection_rates(**kwargs)
 
 
+@pytest.mark.slow  # the benchmark script in full (every stored row once): about 10 s
 def test_the_benchmark_script_regenerates_the_stored_table(tmp_path, stored):
     # benchmarks/coop_detection_rates.py with one repetition: the first repetition of every stored row
     main = runpy.run_path(str(Path(__file__).parents[1] / "benchmarks" / "coop_detection_rates.py"))["main"]

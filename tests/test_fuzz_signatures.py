@@ -213,6 +213,9 @@ VALID = {
     "new_figure": lambda: dict(figure=None, figsize=(2.0, 1.5)),
     "figure_png": lambda: dict(fig=_figure(), drawn=False),
     "smallest_text": lambda: dict(fig=_figure()),
+    "error_lines": lambda: dict(ax=_figure().add_subplot()),
+    "show_errors": lambda: (lambda fig: dict(lines=demos.error_lines(fig.add_subplot()), t=np.arange(3.0),
+                                            error=np.zeros(3), sigma2=np.ones(3), skip=0))(_figure()),
     "failure_message": lambda: dict(error=ValueError("x")),
     "describe_controls": lambda: (lambda c: dict(controls=c, values={"a": 2.0}))(_controls()),
     "require_finite_demo": None,  # takes any object: it checks the arrays its class lists in finite_fields
