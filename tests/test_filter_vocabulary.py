@@ -56,3 +56,17 @@ def test_filter_and_engine_refuse_what_they_do_not_name():
         run_monte_carlo(P0, 4, engine="filterpy", filter="batch")
     with pytest.raises(ValueError, match="^filter must be"):
         CalibrationCase(P0, filter=3)
+
+
+@pytest.mark.parametrize("run", [lambda **kw: run_monte_carlo(P0, **{"n_runs": 4, **kw}),
+                                 lambda **kw: coop.truth_model_test(**{"n_runs": 2, **kw}),
+                                 lambda **kw: orbit.truth_model_test(**{"n_runs": 2, **kw})],
+                         ids=["calibration", "coop", "orbit"])
+@pytest.mark.parametrize("name, value", [("n_runs", 0), ("n_runs", 2.5), ("n_runs", True), ("seed", -1),
+                                         ("seed", "1"), ("workers", 0), ("alpha", 2.0)])
+def test_seed_runs_and_workers_are_refused_in_one_line(run, name, value):
+    """Each argument is checked once (``@checked`` or the shared core), with one line naming it."""
+    with pytest.raises(ValueError) as info:
+        run(**{name: value})
+    message = str(info.value)
+    assert message.startswith(name) and "\n" not in message

@@ -199,7 +199,7 @@ def _check_panels(*panels):
 
         mc = data.calibration.mc
         return plot_check_panels(mc, panels, ncols=2, figsize=_size(),
-                                 title=f"Monte Carlo checks, N = {mc.n_runs} realizations ({mc.filter} filter)")
+                                 title=f"Monte Carlo checks, N = {mc.n_runs} realizations ({mc.engine} engine)")
 
     return make
 

@@ -71,8 +71,8 @@ from ..consistency import (Check, chi2_bounds, correlation_band, normal_band, t_
                            variance_band)
 from functools import partial
 
-from ..validation import (MAX_COUNT, checked, describe, optional, require_bool, require_choice, require_finite, require_instance,
-                          require_int, require_mask, require_significance, require_workers)
+from ..validation import (MAX_COUNT, checked, describe, optional, require_bool, require_choice, require_finite,
+                          require_instance, require_int, require_mask, require_significance, require_workers)
 from .engine import between_fixes, covariance_sequence, filter_estimates, filter_model
 from .error_model import ErrorStateModel, error_state_model
 from .filters import run_filterpy
@@ -81,7 +81,8 @@ from .simulation import (TRUTH_MODELS, draw_realizations, error_state_at_fixes, 
                          mean_error_state)
 
 __all__ = ["CHUNK_SIZE", "MEMORY_LIMIT", "MAX_SECONDS", "chunk_size", "chunk_sizes", "chunk_generators",
-           "chunks_in_flight", "default_workers", "estimate_run", "require_engine", "ENGINES", "FILTERS", "CHECK_NAMES", "ASSIGNMENT_CHECKS", "Check",
+           "chunks_in_flight", "default_workers", "estimate_run", "require_engine", "ENGINES", "FILTERS",
+           "CHECK_NAMES", "ASSIGNMENT_CHECKS", "Check",
            "MonteCarloResult", "BetweenFixes", "CalibrationExperiment", "run_monte_carlo"]
 
 CHUNK_SIZE = 500  #: most realizations simulated together (see chunk_size)
