@@ -62,7 +62,7 @@ def main(argv=None) -> int:
     between = min((b for _, b in pairs), key=lambda r: r.seconds)
     ratios = [b.seconds / a.seconds for a, b in pairs]
     one = min((run_monte_carlo(params, args.runs, seed=s, workers=1) for s in (1, 2, 3)), key=lambda r: r.seconds)
-    fp = run_monte_carlo(params, args.filterpy_runs, seed=4, filter="filterpy")
+    fp = run_monte_carlo(params, args.filterpy_runs, seed=4, engine="filterpy")
     load_after = os.getloadavg()[0]
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 * 1.024  # KiB -> MB
     per_batch = batch.seconds / batch.n_runs

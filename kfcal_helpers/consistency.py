@@ -347,8 +347,8 @@ class Check:
 @runtime_checkable
 class MonteCarloSummary(Protocol):
     """What every problem's Monte Carlo result offers (:func:`kfcal_helpers.montecarlo.run` makes
-    them): ``n_runs`` (realizations), ``alpha`` (significance of the bands), ``filter`` (which filter
-    code ran), ``seconds`` (wall time of the run) and ``checks()``, the checks by name."""
+    them): ``n_runs`` (realizations), ``alpha`` (significance of the bands), ``filter`` (the algorithm
+    that ran: "kf" in the calibration, "lkf", "ekf" or "ukf" in coop and orbit), ``seconds`` (wall time of the run) and ``checks()``, the checks by name."""
 
     n_runs: int
     alpha: float

@@ -56,12 +56,13 @@ def test_every_figure_written_as_slide_png(tmp_path):
     assert {k: matplotlib.rcParams[k] for k in before} == before
     # the outage scenario: the calibration's parameters and seed with the lecture's windows
     assert data.outage.spans == [tuple(w) for w in OUTAGE_WINDOWS] and data.outage.seed == data.calibration.seed
-    assert data.calibration.mc.n_runs == 200 and data.calibration.mc.filter == "batch"
+    assert data.calibration.mc.n_runs == 200 and data.calibration.mc.filter == "kf" and data.calibration.mc.engine == "batch"
 
 
 @pytest.mark.parametrize("kwargs, name", [({"params": {}}, "params"), ({"missing_fixes": np.zeros(3, bool)},
                                           "missing_fixes"), ({"truth": "exact"}, "truth"), ({"seed": -1}, "seed"),
-                                          ({"n_runs": 1}, "n_runs"), ({"filter": "ukf"}, "filter")])
+                                          ({"n_runs": 1}, "n_runs"), ({"filter": "ukf"}, "filter"),
+                                          ({"engine": "ukf"}, "engine")])
 def test_case_validates(kwargs, name):
     with pytest.raises(ValueError, match=name):
         CalibrationCase(**kwargs)
@@ -101,7 +102,7 @@ def test_calibrate_figures_draw_the_outage(tmp_path, capsys, monkeypatch):
     assert main(["calibrate", "--runs", "20", "--seed", "4", "--outage", "5:10", "--figures", str(tmp_path),
                  "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert d["outages"] == [[5.0, 10.0]] and d["filter"] == "batch" and "engine" not in d
+    assert d["outages"] == [[5.0, 10.0]] and d["filter"] == "kf" and d["engine"] == "batch"
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "calib_checks.png", "calib_errors.png", "calib_sigma_sawtooth.png"]
     assert png_size(tmp_path / "calib_errors.png") == SLIDE_PX
@@ -119,7 +120,7 @@ def test_calibrate_json_lists_the_outages(capsys):
     assert json.loads(capsys.readouterr().out)["outages"] == [[14.0, 29.0], [2.5, 4.0]]
     assert main(["calibrate", "--runs", "5", "--engine", "filterpy", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert d["outages"] == [] and d["filter"] == "filterpy"
+    assert d["outages"] == [] and d["filter"] == "kf" and d["engine"] == "filterpy"
     mc = run_monte_carlo(PARAMS, 2, 0)
     assert calibration_cli.result_to_dict(mc)["outages"] == []
 

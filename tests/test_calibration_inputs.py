@@ -38,6 +38,8 @@ def test_runs_and_choices_rejected():
         run_monte_carlo(P0, 1)
     with pytest.raises(ValueError, match="filter"):
         run_monte_carlo(P0, 2, filter="fast")
+    with pytest.raises(ValueError, match="engine"):
+        run_monte_carlo(P0, 2, engine="fast")
     with pytest.raises(ValueError, match="truth"):
         simulate(P0, 2, np.random.default_rng(0), truth="exact")
     for alpha in (1.5, 0.0, 1.0, float("nan"), "0.05", True):
@@ -126,7 +128,7 @@ def test_cli_json(tmp_path, capsys):
     d = json.loads(captured.out)
     for key in ("n_runs", "filter", "seconds", "sigma_final", "ensemble_sigma_final", "checks"):
         assert key in d
-    assert d["n_runs"] == 50 and d["filter"] == "batch" and len(d["sigma_final"]) == 3
+    assert d["n_runs"] == 50 and d["filter"] == "kf" and d["engine"] == "batch" and len(d["sigma_final"]) == 3
     for name in ("mean_error", "covariance", "orthogonality", "residual_independence", "nees", "nis"):
         assert 0.0 <= d["checks"][name]["inside_fraction"] <= 1.0
     assert len(d["checks"]["nees"]["bounds"]) == 2 and len(d["checks"]["nis"]["bounds"]) == 2
@@ -137,7 +139,7 @@ def test_cli_json(tmp_path, capsys):
 def test_cli_table_in_process(capsys):
     assert main(["calibrate", "--runs", "20", "--engine", "filterpy"]) == 0
     out = capsys.readouterr().out
-    assert "nees" in out and "filter filterpy" in out
+    assert "nees" in out and "filter kf, engine filterpy" in out
 
 
 def test_filterpy_progress_moves_every_realization(monkeypatch):
@@ -161,20 +163,20 @@ def test_filterpy_progress_moves_every_realization(monkeypatch):
             calls.append(("close", 0, time.perf_counter()))
 
     monkeypatch.setattr(core, "progress_bar", Recorder)
-    run_monte_carlo(P0, 12, seed=0, filter="filterpy", progress=True)
+    run_monte_carlo(P0, 12, seed=0, engine="filterpy", progress=True)
     kinds = [c[0] for c in calls]
     assert kinds == ["total"] + ["update"] * 12 + ["close"] and calls[0][1] == 12
     assert all(c[1] == 1 for c in calls[1:-1])
     gaps = np.diff([c[2] for c in calls[:-1]])
     assert gaps.max() < 1.0, gaps.max()
     calls.clear()
-    run_monte_carlo(P0, 1200, seed=0, filter="batch", progress=True)  # batch: by chunk, in total n_runs
+    run_monte_carlo(P0, 1200, seed=0, engine="batch", progress=True)  # batch: by chunk, in total n_runs
     assert sum(c[1] for c in calls if c[0] == "update") == 1200
     calls.clear()
     # on two threads (two chunks of 6 filterpy realizations) the bar, moved from the calling thread,
     # still moves within every second and counts every realization
     monkeypatch.setattr(montecarlo, "CHUNK_SIZE", 6)
-    run_monte_carlo(P0, 12, seed=0, filter="filterpy", progress=True, workers=2)
+    run_monte_carlo(P0, 12, seed=0, engine="filterpy", progress=True, workers=2)
     assert [c[0] for c in calls][0] == "total" and calls[-1][0] == "close"
     assert sum(c[1] for c in calls if c[0] == "update") == 12
     gaps = np.diff([c[2] for c in calls[:-1]])

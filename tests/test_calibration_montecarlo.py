@@ -36,8 +36,8 @@ def test_analytic_truth_is_caught():
 
 
 def test_filterpy_engine_gives_the_same_statistics():
-    a = run_monte_carlo(P0, n_runs=6, seed=9, filter="batch")
-    b = run_monte_carlo(P0, n_runs=6, seed=9, filter="filterpy")
+    a = run_monte_carlo(P0, n_runs=6, seed=9, engine="batch")
+    b = run_monte_carlo(P0, n_runs=6, seed=9, engine="filterpy")
     for name in ("e_mean", "e_cov", "orthogonality", "residual_moment", "nees", "nis"):
         np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-9, atol=1e-12)
 
@@ -107,7 +107,7 @@ def test_between_fixes_equals_the_direct_statistics_and_filterpy():
     scale = sd[:, :, None] * sd[:, None, :]
     np.testing.assert_allclose(mc.between.e_cov / scale, cov / scale, rtol=0, atol=1e-7)
     np.testing.assert_allclose(mc.between.P, batch_filter(mc.params, sim.dz[:1]).P, rtol=1e-12)
-    fp = run_monte_carlo(P0, n_runs=n, seed=31, filter="filterpy", between_fixes=True)
+    fp = run_monte_carlo(P0, n_runs=n, seed=31, engine="filterpy", between_fixes=True)
     np.testing.assert_allclose(fp.between.e_cov / scale, mc.between.e_cov / scale, rtol=0, atol=1e-7)
 
 
@@ -282,7 +282,7 @@ def test_workers_do_not_change_other_modes(case, monkeypatch):
         missing[30:60] = True
         kw = {"missing_fixes": missing, "between_fixes": True, "truth": "analytic"}
     elif case == "filterpy":
-        kw = {"filter": "filterpy"}
+        kw = {"engine": "filterpy"}
     n = 10
     runs = []
     for w in (1, 2, 3):
@@ -307,7 +307,7 @@ def test_result_has_the_shared_interface():
     from kfcal_helpers.consistency import MonteCarloSummary, format_checks
 
     mc = run_monte_carlo(P0, 50, seed=1, between_fixes=True)
-    assert isinstance(mc, MonteCarloSummary) and mc.n_runs == 50 and mc.alpha == 0.05 and mc.filter == "batch"
+    assert isinstance(mc, MonteCarloSummary) and mc.n_runs == 50 and mc.alpha == 0.05 and mc.filter == "kf" and mc.engine == "batch"
     table = format_checks({**mc.checks(), "between_fixes": mc.between_fixes_check()})
     assert [line.split()[0] for line in table.splitlines()[2:]] == [*CHECK_NAMES, "between_fixes"]
 
@@ -327,8 +327,8 @@ def test_chunks_in_flight_are_bounded_by_memory():
     # chunks fit; filterpy keeps its 200 Hz estimates of every realization of a chunk, only one fits
     long = CalibrationParams(imu_rate=1000.0, duration=60.0)
     assert chunks_in_flight(long, 1000, workers=2, between_fixes=True) == 2
-    assert chunks_in_flight(long, 1000, workers=2, between_fixes=True, filter="filterpy") == 1
-    assert chunks_in_flight(long, 1000, workers=2, filter="filterpy") == 2
+    assert chunks_in_flight(long, 1000, workers=2, between_fixes=True, engine="filterpy") == 1
+    assert chunks_in_flight(long, 1000, workers=2, engine="filterpy") == 2
     for engine in ("batch", "filterpy"):
         assert estimate_run(long, 100, engine, workers=2, between_fixes=True)[0] <= MEMORY_LIMIT
 
@@ -428,7 +428,7 @@ def test_an_interrupted_threaded_run_does_not_hang(monkeypatch):
     monkeypatch.setattr(core, "progress_bar", Interrupting)
     before = threading.active_count()
     with pytest.raises(KeyboardInterrupt):
-        run_monte_carlo(P0, 400, seed=0, filter="filterpy", workers=2, progress=True)
+        run_monte_carlo(P0, 400, seed=0, engine="filterpy", workers=2, progress=True)
     deadline = time.perf_counter() + 5
     while threading.active_count() > before and time.perf_counter() < deadline:
         time.sleep(0.05)

@@ -21,7 +21,7 @@ from . import cli, figures, mistakes
 
 from .error_model import ErrorStateModel, error_state_model, phi_power
 from .filters import FilterResult, batch_filter, between_fixes, covariance_sequence, make_kalman_filter, run_filterpy
-from .montecarlo import ASSIGNMENT_CHECKS, CHECK_NAMES, FILTERS, Check, MonteCarloResult, run_monte_carlo
+from .montecarlo import ASSIGNMENT_CHECKS, CHECK_NAMES, ENGINES, FILTERS, Check, MonteCarloResult, run_monte_carlo
 from .params import CalibrationParams
 from .outages import outage_mask, parse_outage
 from .batch_estimate import (batch_conditioning, batch_conditioning_covariance, prior_covariances_at_fixes,
@@ -32,7 +32,7 @@ __all__ = [
     "CalibrationParams", "Simulation", "simulate", "acceleration", "analytic_truth", "integrate_left",
     "TRUTH_MODELS", "ErrorStateModel", "error_state_model", "phi_power", "FilterResult",
     "make_kalman_filter", "run_filterpy", "between_fixes", "covariance_sequence", "batch_filter", "Check",
-    "MonteCarloResult", "run_monte_carlo", "CHECK_NAMES", "ASSIGNMENT_CHECKS", "FILTERS",
+    "MonteCarloResult", "run_monte_carlo", "CHECK_NAMES", "ASSIGNMENT_CHECKS", "ENGINES", "FILTERS",
     "outage_mask", "parse_outage", "batch_conditioning", "batch_conditioning_covariance", "prior_covariances_at_fixes",
     "rts_smooth_fixes", "PROBLEM",
 ]

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..consistency import format_checks
 from ..validation import MAX_SEED, cli_float, cli_int, require_int
-from .montecarlo import FILTERS, MEMORY_LIMIT, estimate_run, run_monte_carlo
+from .montecarlo import ENGINES, MEMORY_LIMIT, estimate_run, run_monte_carlo
 from .outages import outage_mask, parse_outage
 from .params import CalibrationParams
 from .simulation import TRUTH_MODELS
@@ -49,8 +49,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "or 1 h are refused")
     p.add_argument("--seed", type=cli_int(0, MAX_SEED), default=0,
                    help="seed of numpy.random.default_rng, an integer >= 0 (default 0)")
-    p.add_argument("--engine", choices=FILTERS, default="batch", dest="filter",
-                   help="the filter code: batch (fast) or filterpy (one filter per run); JSON key 'filter'")
+    p.add_argument("--engine", choices=ENGINES, default="batch",
+                   help="how the Kalman filter runs: batch (fast) or filterpy (one filter per run); JSON key "
+                        "'engine' (key 'filter' is the algorithm, 'kf')")
     p.add_argument("--omega", type=cli_float(0, unit="rad/s"), default=d.omega,
                    help=f"rad/s, at most pi * IMU rate (default {d.omega:g})")
     p.add_argument("--imu-rate", type=cli_float(0, unit="Hz"), default=d.imu_rate, help=f"Hz (default {d.imu_rate:g})")
@@ -83,6 +84,7 @@ def result_to_dict(mc, outages=(), checks=None, skipped=None) -> dict:
     out = {
         "n_runs": mc.n_runs,
         "filter": mc.filter,
+        "engine": mc.engine,
         "truth": mc.truth,
         "seconds": mc.seconds,
         "alpha": mc.alpha,
@@ -110,7 +112,7 @@ def output_bytes(params: CalibrationParams, figures: bool = False, between_fixes
     return out
 
 
-def plan_between_fixes(params: CalibrationParams, n_runs: int, filter: str, figures: bool = False,
+def plan_between_fixes(params: CalibrationParams, n_runs: int, engine: str, figures: bool = False,
                        runs_name: str = "--runs", params_name: str = "--duration, --imu-rate, --gps-rate"):
     """``(between, skipped)``: whether the run also checks the 200 Hz error between fixes, and why not.
 
@@ -119,14 +121,14 @@ def plan_between_fixes(params: CalibrationParams, n_runs: int, filter: str, figu
     estimate's ValueError when even the run without them does not fit, or takes too long."""
     names = {"runs_name": runs_name, "params_name": params_name}
     if params.n_imu <= params.n_gps:
-        estimate_run(params, n_runs, filter, extra_bytes=output_bytes(params, figures), **names)
+        estimate_run(params, n_runs, engine, extra_bytes=output_bytes(params, figures), **names)
         return False, {"between_fixes": "every IMU sample is a GPS fix (GPS rate = IMU rate): nothing between fixes"}
     try:
-        estimate_run(params, n_runs, filter, extra_bytes=output_bytes(params, figures, True), between_fixes=True,
+        estimate_run(params, n_runs, engine, extra_bytes=output_bytes(params, figures, True), between_fixes=True,
                      **names)
         return True, {}
     except ValueError:
-        estimate_run(params, n_runs, filter, extra_bytes=output_bytes(params, figures), **names)
+        estimate_run(params, n_runs, engine, extra_bytes=output_bytes(params, figures), **names)
         return False, {"between_fixes": f"not run: its 200 Hz sums over {params.n_imu} IMU samples would take the "
                                         f"run over the {MEMORY_LIMIT / 1e6:.0f} MB allowed"}
 
@@ -200,7 +202,7 @@ def run(args) -> int:
     # before anything of the scenario's size is allocated: refuse what cannot fit or would take hours, and
     # check the 200 Hz error between fixes when it fits (the same checks in the table and in the JSON)
     between, skipped = plan_between_fixes(
-        params, args.runs, args.filter, figures=args.figures is not None,
+        params, args.runs, args.engine, figures=args.figures is not None,
         params_name="--duration, --imu-rate, --gps-rate" + (", --figures" if args.figures else ""))
     windows = [parse_outage(text, "--outage") for text in args.outage]
     missing = outage_mask(params, windows, name="--outage") if windows else None
@@ -211,7 +213,7 @@ def run(args) -> int:
     if missing is not None and (~missing).sum() < 2:
         raise ValueError(f"--outage: the outages leave {int((~missing).sum())} of the {params.n_gps} GPS fixes; "
                          f"at least 2 must remain")
-    mc = run_monte_carlo(params, args.runs, args.seed, filter=args.filter, truth=args.truth, progress=None,
+    mc = run_monte_carlo(params, args.runs, args.seed, engine=args.engine, truth=args.truth, progress=None,
                          missing_fixes=missing, between_fixes=between,
                          extra_bytes=output_bytes(params, args.figures is not None, between))
     written = write_figures(mc, args.figures, seed=args.seed) if args.figures else []
@@ -224,7 +226,7 @@ def run(args) -> int:
         print(dumps_json(d))
         return 0
     s, es = mc.sigma_final, mc.ensemble_sigma_final
-    print(f"{mc.n_runs} realizations, filter {mc.filter}, truth {mc.truth}, {mc.seconds:.2f} s")
+    print(f"{mc.n_runs} realizations, filter {mc.filter}, engine {mc.engine}, truth {mc.truth}, {mc.seconds:.2f} s")
     print(f"sigma at the last fix from P:        p {s[0]:.4g} m, v {s[1]:.4g} m/s, b {s[2]:.4g} m/s^2")
     print(f"sigma at the last fix from ensemble: p {es[0]:.4g} m, v {es[1]:.4g} m/s, b {es[2]:.4g} m/s^2")
     print(format_checks(checks))

@@ -65,12 +65,13 @@ class CalibrationCase:
 
     params : CalibrationParams (default: ``CalibrationParams()``); missing_fixes : bool (n_gps,) or None;
     truth : "euler" or "analytic"; seed : seed of the realization and of the Monte Carlo;
-    n_runs, filter : of the Monte Carlo ("batch" or "filterpy"); mc : an existing MonteCarloResult to use instead.
+    n_runs, engine : of the Monte Carlo (engine "batch" or "filterpy"; ``filter="batch"`` or ``"filterpy"``,
+    the keyword of an earlier version, is read as ``engine``); mc : an existing MonteCarloResult to use instead.
     """
 
     def __init__(self, params=None, missing_fixes=None, truth: str = "euler", seed: int = 0,
-                 n_runs: int = CALIBRATION_RUNS, filter: str = "batch", mc=None):
-        from .montecarlo import FILTERS
+                 n_runs: int = CALIBRATION_RUNS, engine: str = "batch", mc=None, *, filter: str | None = None):
+        from .montecarlo import require_engine
         from .simulation import TRUTH_MODELS
 
         self.params = _params(params)
@@ -79,7 +80,7 @@ class CalibrationCase:
         self.truth = require_choice("truth", truth, TRUTH_MODELS)
         self.seed = require_int("seed", seed, minimum=0)
         self.n_runs = require_int("n_runs", n_runs, minimum=2)
-        self.filter = require_choice("filter", filter, FILTERS)
+        self.engine = require_engine(engine, filter)
         if mc is not None:
             self.mc = mc
 
@@ -91,7 +92,7 @@ class CalibrationCase:
     @classmethod
     def from_monte_carlo(cls, mc, seed: int = 0) -> "CalibrationCase":
         """The scenario of an existing MonteCarloResult (its params, truth and missing fixes)."""
-        return cls(mc.params, mc.missing, truth=mc.truth, seed=seed, n_runs=mc.n_runs, filter=mc.filter, mc=mc)
+        return cls(mc.params, mc.missing, truth=mc.truth, seed=seed, n_runs=mc.n_runs, engine=mc.engine, mc=mc)
 
     @cached_property
     def realization(self):
@@ -103,7 +104,7 @@ class CalibrationCase:
         """The seeded Monte Carlo of this scenario (MonteCarloResult)."""
         from .montecarlo import run_monte_carlo
 
-        return run_monte_carlo(self.params, self.n_runs, self.seed, filter=self.filter, truth=self.truth,
+        return run_monte_carlo(self.params, self.n_runs, self.seed, engine=self.engine, truth=self.truth,
                                missing_fixes=self.missing, progress=False)
 
     @cached_property
@@ -198,7 +199,7 @@ def _check_panels(*panels):
 
         mc = data.calibration.mc
         return plot_check_panels(mc, panels, ncols=2, figsize=_size(),
-                                 title=f"Monte Carlo checks, N = {mc.n_runs} realizations ({mc.filter} filter)")
+                                 title=f"Monte Carlo checks, N = {mc.n_runs} realizations ({mc.engine} engine)")
 
     return make
 

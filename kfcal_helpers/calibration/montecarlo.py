@@ -71,8 +71,8 @@ from ..consistency import (Check, chi2_bounds, correlation_band, normal_band, t_
                            variance_band)
 from functools import partial
 
-from ..validation import (MAX_COUNT, checked, optional, require_bool, require_choice, require_finite, require_instance,
-                          require_int, require_mask, require_seed, require_significance, require_workers)
+from ..validation import (MAX_COUNT, checked, describe, optional, require_bool, require_choice, require_finite,
+                          require_instance, require_int, require_mask, require_significance, require_workers)
 from .engine import between_fixes, covariance_sequence, filter_estimates, filter_model
 from .error_model import ErrorStateModel, error_state_model
 from .filters import run_filterpy
@@ -81,7 +81,8 @@ from .simulation import (TRUTH_MODELS, draw_realizations, error_state_at_fixes, 
                          mean_error_state)
 
 __all__ = ["CHUNK_SIZE", "MEMORY_LIMIT", "MAX_SECONDS", "chunk_size", "chunk_sizes", "chunk_generators",
-           "chunks_in_flight", "default_workers", "estimate_run", "FILTERS", "CHECK_NAMES", "ASSIGNMENT_CHECKS", "Check",
+           "chunks_in_flight", "default_workers", "estimate_run", "require_engine", "ENGINES", "FILTERS",
+           "CHECK_NAMES", "ASSIGNMENT_CHECKS", "Check",
            "MonteCarloResult", "BetweenFixes", "CalibrationExperiment", "run_monte_carlo"]
 
 CHUNK_SIZE = 500  #: most realizations simulated together (see chunk_size)
@@ -122,7 +123,10 @@ _GRAM_MAX_STEPS = 64
 _GRAM_ROWS = 128  #: realizations per product in the Gram form (r x rows x r below OpenBLAS's threading size)
 _SECONDS_PER_SAMPLE = {"batch": 1.5e-7, "filterpy": 6e-6}
 _SECONDS_PER_FIX2 = 3e-6
-FILTERS = ("batch", "filterpy")  #: the filter codes run_monte_carlo can run
+ENGINES = ("batch", "filterpy")  #: the engines run_monte_carlo can run the filter with
+#: the calibration's filter algorithms, in the sense of ``coop.FILTERS`` and ``orbit.FILTERS``: the linear
+#: Kalman filter (``filter`` of a MonteCarloResult)
+FILTERS = ("kf",)
 CHECK_NAMES = ("mean_error", "covariance", "orthogonality", "residual_independence",
                "residual_variance", "nees", "nis")
 #: the checks the assignment asks for: mean error, covariance, orthogonality and the residuals' independence,
@@ -139,7 +143,9 @@ class MonteCarloResult:
     statistics of the a posteriori / a priori errors; orthogonality (n_gps, 3, 3);
     xhat_sq_mean (n_gps, 3); residual_moment (n_gps, 2, n_gps, 2) = (1/N) sum r r^T (NaN at missing
     fixes); nees (n_gps,), nis (n_gps,) run averages (NaN at missing fixes for NIS);
-    filter: "batch" or "filterpy"; seconds: wall time of simulation + filtering + statistics.
+    filter: the algorithm, "kf" (the linear Kalman filter; "lkf", "ekf", "ukf" in the other problems);
+    engine: how it was run, "batch" (vectorised) or "filterpy" (one KalmanFilter per realization);
+    seconds: wall time of simulation + filtering + statistics.
     The interface shared by every problem (``kfcal_helpers.consistency.MonteCarloSummary``):
     ``n_runs``, ``alpha``, ``filter``, ``seconds``, ``checks()`` (printed by
     ``kfcal_helpers.consistency.format_checks``).
@@ -148,6 +154,7 @@ class MonteCarloResult:
     params: CalibrationParams
     n_runs: int
     filter: str
+    engine: str
     truth: str
     alpha: float
     seconds: float
@@ -580,7 +587,7 @@ def chunk_size(params: CalibrationParams) -> int:
     """Realizations simulated together for ``params``: :data:`CHUNK_SIZE`, or fewer when the
     realizations are long (a fixed rule on the numbers of IMU samples and GPS fixes; at least 1;
     :func:`estimate_run` refuses runs where even 1 does not fit).  It depends on neither
-    ``between_fixes``, ``filter`` nor ``workers``, so the random draws, and the seven checks, are the
+    ``between_fixes``, ``engine`` nor ``workers``, so the random draws, and the seven checks, are the
     same with and without them."""
     require_instance("params", params, CalibrationParams)
     n_imu, n_gps = params.n_imu, params.n_gps
@@ -631,10 +638,11 @@ class CalibrationExperiment:
     the core calls when the run starts.  Sizes in bytes, times in seconds.
     """
 
-    def __init__(self, params: CalibrationParams, *, filter: str = "batch", truth: str = "euler",
+    def __init__(self, params: CalibrationParams, *, engine: str = "batch", truth: str = "euler",
                  alpha: float = 0.05, missing=None, model: ErrorStateModel | None = None,
-                 between_fixes: bool = False):
-        self.params, self.filter, self.truth, self.alpha = params, filter, truth, alpha
+                 between_fixes: bool = False, filter: str | None = None):
+        self.params, self.truth, self.alpha = params, truth, alpha
+        self.engine = require_engine(engine, filter)
         self.missing = np.zeros(params.n_gps, bool) if missing is None else missing
         self.given_model = model
         self.between = between_fixes
@@ -648,7 +656,7 @@ class CalibrationExperiment:
         p = self.params
         if not self.between:
             return 0.0
-        if self.filter == "filterpy":
+        if self.engine == "filterpy":
             return 96.0 * p.n_imu
         d = 9 if self.given_model is not None else 6  # [e_post, (dx), C_i, B_i, 1]
         r = p.steps_per_fix
@@ -658,7 +666,7 @@ class CalibrationExperiment:
     def _gram_bytes(self) -> float:
         """One (n_gps, r, r) array of the Gram form of the 200 Hz sums (0 when it is not used)."""
         p = self.params
-        use = self.between and self.filter == "batch" and p.steps_per_fix <= _GRAM_MAX_STEPS
+        use = self.between and self.engine == "batch" and p.steps_per_fix <= _GRAM_MAX_STEPS
         return 8.0 * p.n_gps * p.steps_per_fix**2 if use else 0.0
 
     def fixed_bytes(self, n_runs: int) -> float:
@@ -670,7 +678,7 @@ class CalibrationExperiment:
     def chunk_bytes(self, size: int) -> float:
         """One chunk of ``size`` realizations in flight: its draws, its filtering and its partial sums."""
         p = self.params
-        per_sample = _BYTES_PER_SAMPLE + (_BETWEEN_BYTES_PER_SAMPLE[self.filter] if self.between else 0.0)
+        per_sample = _BYTES_PER_SAMPLE + (_BETWEEN_BYTES_PER_SAMPLE[self.engine] if self.between else 0.0)
         return (size * (per_sample * p.n_imu + _BYTES_PER_FIX * p.n_gps)
                 + _PARTIAL_BYTES_PER_FIX2 * p.n_gps**2 + self._between_sums_bytes()
                 + self._gram_bytes())  # a product before it is added
@@ -691,11 +699,11 @@ class CalibrationExperiment:
 
     def seconds(self, n_runs: int) -> float:
         p = self.params
-        return _SECONDS_PER_SAMPLE[self.filter] * p.n_imu * float(n_runs) + _SECONDS_PER_FIX2 * p.n_gps**2
+        return _SECONDS_PER_SAMPLE[self.engine] * p.n_imu * float(n_runs) + _SECONDS_PER_FIX2 * p.n_gps**2
 
     def what(self) -> str:
         p = self.params
-        return f"one realization of {p.n_imu} IMU samples and {p.n_gps} GPS fixes, filter {self.filter!r}"
+        return f"one realization of {p.n_imu} IMU samples and {p.n_gps} GPS fixes, engine {self.engine!r}"
 
     def scenario_advice(self) -> str:
         return _SCENARIO_ADVICE
@@ -708,7 +716,7 @@ class CalibrationExperiment:
         m = filter_model(p, self.given_model)
         P, P_prior, S, K = covariance_sequence(p, self.missing, m)
         G, with_dx, offset = None, False, None
-        if self.between and self.filter == "batch":
+        if self.between and self.engine == "batch":
             r = p.steps_per_fix
             Pf = between_fixes(p, m)[0][:r]  # the filter's Phi^k
             Pt = between_fixes(p, error_state_model(p))[0][:r]  # the true one
@@ -734,7 +742,7 @@ class CalibrationExperiment:
         sums = _Sums(p.n_gps, int((~self.missing).sum()))
         if not self.between:
             return sums, None
-        if self.filter == "filterpy":
+        if self.engine == "filterpy":
             return sums, _BetweenSums(p.n_imu)
         return sums, _BetweenMoments(p.n_gps, p.steps_per_fix, p.n_imu, self.setup.G.shape[2])
 
@@ -746,7 +754,7 @@ class CalibrationExperiment:
         dx = error_state_at_fixes(params, draws, self.truth)
         dz = dx[..., :2] + draws.eta
         dz[:, missing] = np.nan
-        if self.filter == "batch":
+        if self.engine == "batch":
             x_prior, x_post, y = filter_estimates(params, dz, setup.K, missing, setup.model)
         else:
             x_prior, x_post = np.empty((size, params.n_gps, 3)), np.empty((size, params.n_gps, 3))
@@ -763,7 +771,7 @@ class CalibrationExperiment:
         sums, bsums = self._new_sums()
         sums.add(dx, x_prior, x_post, y[:, ~missing])
         if bsums is not None:
-            if self.filter == "batch":
+            if self.engine == "batch":
                 e_post = dx - x_post
                 bsums.add(params, draws.w, np.concatenate([e_post, dx], axis=2) if setup.with_dx else e_post)
             else:
@@ -798,7 +806,7 @@ class CalibrationExperiment:
         nis = np.full(n_gps, np.nan)
         nis[ok] = np.einsum("iab,iaib->i", np.linalg.inv(S[ok]), moment[ok][:, :, ok, :])
         result = MonteCarloResult(
-            params=params, n_runs=N, filter=self.filter, truth=self.truth, alpha=self.alpha, seconds=0.0,
+            params=params, n_runs=N, filter=FILTERS[0], engine=self.engine, truth=self.truth, alpha=self.alpha, seconds=0.0,
             t_gps=params.t_gps, missing=missing, P_prior=P_prior, P_post=P_post, S=S,
             e_mean=e_mean, e_cov=e_cov, e_prior_mean=eb_mean, e_prior_cov=eb_cov,
             orthogonality=orth, xhat_sq_mean=xx / N, residual_moment=moment, nees=nees, nis=nis,
@@ -809,30 +817,46 @@ class CalibrationExperiment:
 
 
 def chunks_in_flight(params: CalibrationParams, n_runs: int, workers: int | None = None,
-                     between_fixes: bool = False, filter: str = "batch") -> int:
+                     between_fixes: bool = False, engine: str = "batch", *, filter: str | None = None) -> int:
     """How many chunks run at once: ``workers`` (default :func:`default_workers`), but no more than
     there are chunks, nor than fit in :data:`MEMORY_LIMIT` (at least 1); the core's
     :func:`kfcal_helpers.montecarlo.estimate` (ValueError when the run does not fit at all)."""
-    exp = CalibrationExperiment(params, filter=filter, between_fixes=between_fixes)
+    exp = CalibrationExperiment(params, engine=engine, filter=filter, between_fixes=between_fixes)
     return core.estimate(exp, n_runs, workers).in_flight
 
 
-def estimate_run(params: CalibrationParams, n_runs: int, filter: str = "batch",
+def estimate_run(params: CalibrationParams, n_runs: int, engine: str = "batch",
                  runs_name: str = "n_runs", params_name: str = "params",
                  extra_bytes: float = 0.0, between_fixes: bool = False,
-                 workers: int | None = None, model: ErrorStateModel | None = None) -> tuple[float, float]:
+                 workers: int | None = None, model: ErrorStateModel | None = None, *,
+                 filter: str | None = None) -> tuple[float, float]:
     """Estimated ``(peak bytes, seconds)`` of :func:`run_monte_carlo`, with every chunk in flight
     counted (the core's :func:`kfcal_helpers.montecarlo.estimate`); ValueError, with the estimate,
     when the peak exceeds :data:`MEMORY_LIMIT` (naming ``params_name``: the scenario has too many IMU
     samples or GPS fixes) or the time exceeds :data:`MAX_SECONDS` (naming ``runs_name``).
     ``extra_bytes``: what the caller needs after the Monte Carlo, while its result is alive (the
-    command line's output and figures).  The time is that of one thread (a conservative bound)."""
+    command line's output and figures).  The time is that of one thread (a conservative bound).
+    ``engine`` and ``filter`` as in :func:`run_monte_carlo`."""
     require_instance("params", params, CalibrationParams)
-    require_choice("filter", filter, FILTERS)
-    exp = CalibrationExperiment(params, filter=filter, between_fixes=bool(between_fixes), model=model)
+    exp = CalibrationExperiment(params, engine=engine, filter=filter, between_fixes=bool(between_fixes), model=model)
     est = core.estimate(exp, n_runs, workers, extra_bytes=extra_bytes, runs_name=runs_name,
                         params_name=params_name)
     return est.peak_bytes, est.seconds
+
+
+def require_engine(engine, filter=None) -> str:
+    """The engine ``engine`` ("batch" or "filterpy") names, or that ``filter`` names in code written when
+    ``filter`` meant the engine; ``filter`` may also be "kf", the algorithm (the only one).  ValueError
+    naming the argument otherwise, or when ``filter`` and ``engine`` name different engines."""
+    engine = require_choice("engine", engine, ENGINES)
+    if filter is None or (isinstance(filter, str) and filter in FILTERS):
+        return engine
+    if not isinstance(filter, str) or filter not in ENGINES:
+        raise ValueError(f"filter must be 'kf' (the linear Kalman filter; the engine is engine='batch' or "
+                         f"'filterpy'), got {describe(filter)}")
+    if engine != ENGINES[0] and filter != engine:
+        raise ValueError(f"filter={filter!r} names an engine other than engine={engine!r}; give engine only")
+    return filter
 
 
 _SCENARIO_ADVICE = ("use a shorter duration or lower rates (at most about 1000 GPS fixes and 3 million IMU "
@@ -848,10 +872,11 @@ def _byte_count(name, value):
 
 @checked(n_runs=partial(require_int, minimum=2, maximum=MAX_COUNT), progress=optional(require_bool),
          between_fixes=require_bool, workers=optional(require_workers), extra_bytes=_byte_count)
-def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: str = "batch",
+def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, engine: str = "batch",
                     truth: str = "euler", alpha: float = 0.05, missing_fixes=None, progress: bool | None = False,
                     model: ErrorStateModel | None = None, between_fixes: bool = False,
-                    workers: int | None = None, extra_bytes: float = 0.0) -> MonteCarloResult:
+                    workers: int | None = None, extra_bytes: float = 0.0,
+                    filter: str | None = None) -> MonteCarloResult:
     """Simulate ``n_runs`` realizations, filter them, and accumulate the check statistics.
 
     Parameters
@@ -860,7 +885,8 @@ def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: s
     n_runs : int >= 2
     seed : int (or None: fresh entropy) seeding ``numpy.random.SeedSequence``, or a numpy.random.Generator;
         chunk ``c`` draws from its own stream (:func:`chunk_generators`)
-    filter : "batch" (vectorised, shared gains) or "filterpy" (one KalmanFilter per run)
+    engine : "batch" (vectorised, shared gains) or "filterpy" (one KalmanFilter per run): how the filter
+        runs; the same seed gives both the same draws
     truth : "euler" or "analytic"
     alpha : significance of the bands, in (0, 1)
     missing_fixes : optional bool array (n_gps,), fixes that are missing (outages)
@@ -873,6 +899,9 @@ def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: s
         chunks would not fit in :data:`MEMORY_LIMIT`).  The result is the same, bit for bit, for any
         number: every chunk has its own random stream and the sums are added in chunk order.
     extra_bytes : bytes the caller needs while the result is alive (counted in the estimate)
+    filter : the algorithm, "kf" (the only one, the linear Kalman filter; the result's ``filter``).
+        Code written when ``filter`` named the engine still runs: ``filter="batch"`` or
+        ``filter="filterpy"`` is read as ``engine=``.
 
     Returns
     -------
@@ -884,8 +913,7 @@ def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: s
     or a run refused by :func:`estimate_run` (too much memory or time).
     """
     require_instance("params", params, CalibrationParams)
-    n_runs = require_int("n_runs", n_runs, minimum=2)
-    require_choice("filter", filter, FILTERS)
+    engine = require_engine(engine, filter)
     require_choice("truth", truth, TRUTH_MODELS)
     alpha = require_significance("alpha", alpha)
     missing = require_mask("missing_fixes", missing_fixes, params.n_gps)
@@ -893,13 +921,8 @@ def run_monte_carlo(params: CalibrationParams, n_runs: int, seed=0, *, filter: s
     if (~missing).sum() < 2:
         raise ValueError(f"missing_fixes must leave at least 2 of the {params.n_gps} GPS fixes, "
                          f"got {int((~missing).sum())}")
-    if not isinstance(seed, np.random.Generator):
-        seed = require_seed("seed", seed)
-    if not isinstance(between_fixes, (bool, np.bool_)):
-        raise ValueError(f"between_fixes must be True or False, got {between_fixes!r}")
-    workers = None if workers is None else require_int("workers", workers, minimum=1)
     filter_model(params, model)  # validates model
-    exp = CalibrationExperiment(params, filter=filter, truth=truth, alpha=alpha, missing=missing, model=model,
+    exp = CalibrationExperiment(params, engine=engine, truth=truth, alpha=alpha, missing=missing, model=model,
                                 between_fixes=bool(between_fixes))
-    return core.run(exp, n_runs, seed, workers=workers, progress=progress, desc=f"Monte Carlo ({filter})",
+    return core.run(exp, n_runs, seed, workers=workers, progress=progress, desc=f"Monte Carlo ({engine})",
                     extra_bytes=extra_bytes)

@@ -2,7 +2,7 @@
 (:data:`kfcal_helpers.calibration.mistakes.MISTAKES`, the rows of notebook 14) as a function of the
 number of realizations N, estimated from repeated Monte Carlos on the batch path.
 
-One *repetition* at N is one ``run_monte_carlo(params, N, seed, filter="batch",
+One *repetition* at N is one ``run_monte_carlo(params, N, seed, engine="batch",
 model=mistaken_model(params, mistake))``; the mistake is *detected* when at least one of the
 checks fails (its simultaneous band, family-wise level ``alpha``): the seven checks
 (:data:`CHECK_NAMES`), or the assignment's four (:data:`ASSIGNMENT_CHECKS`, ``alpha`` split over
@@ -62,7 +62,7 @@ def detection_rates(mistakes=None, n_runs=DEFAULT_N_RUNS, reps: int = 20, seed: 
     alpha = require_probability("alpha", alpha)
 
     def case(model):
-        return lambda n, seeds: [run_monte_carlo(p, n, seed=s, filter="batch", alpha=alpha, model=model,
+        return lambda n, seeds: [run_monte_carlo(p, n, seed=s, engine="batch", alpha=alpha, model=model,
                                                  progress=False).checks(family) for s in seeds]
 
     return detection_table({m: case(mistaken_model(p, m)) for m in names}, family, n_runs, reps, seed, alpha)

@@ -289,9 +289,7 @@ def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0,
     MonteCarloResult (with ``seconds``, the wall time).  ValueError, before any work, when the test
     would need more than 500 MB (the per-run arrays: 112 kB per run of 1001 steps) or an hour.
     """
-    n_runs = require_int("n_runs", n_runs, minimum=1)
-    alpha = require_significance("alpha", alpha)
-    exp = _experiment(params, filter, alpha, every, settings)
+    exp = _experiment(params, filter, alpha, every, settings)  # checks alpha (n_runs: @checked, seed: core.run)
     desc = desc or f"{exp.setup.filter.upper()} truth-model test"
     return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=desc)
 

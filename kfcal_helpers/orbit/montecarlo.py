@@ -155,11 +155,9 @@ def truth_model_test(params: OrbitParams | None = None, n_runs: int = 50, seed=0
     to set the UKF's sigma-point ``alpha``, since ``alpha`` here is the significance).
     Returns a :class:`MonteCarloResult`; ValueError before any work when the estimate exceeds 500 MB or 1 h.
     """
-    n_runs = require_int("n_runs", n_runs, minimum=1)
     if setup is None:
         setup = FilterSetup(filter, params, **settings)
     elif params is not None or settings:
         raise ValueError("setup: give either a FilterSetup or params and filter settings, not both")
-    setup = require_instance("setup", setup, FilterSetup)
     exp = OrbitExperiment(setup, alpha=alpha, every=every, integrator=integrator)
     return core.run(exp, n_runs, seed, workers=workers, progress=None, desc=f"{setup.filter.upper()} truth-model test")
