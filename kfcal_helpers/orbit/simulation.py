@@ -29,9 +29,10 @@ from scipy.linalg import cholesky
 
 from functools import partial
 
+from ..angles import wrap_angle
 from ..validation import (MAX_SEED, as_generator, checked, optional, require_bool, require_choice, require_covariance,
                           require_array, require_finite_array, require_int, require_positive, require_sequence, require_text)
-from .model import horizon, measure_relative, params_or_default, relative_states, require_states, rk4_flow, wrap_phi
+from .model import PHI, horizon, measure_relative, params_or_default, relative_states, require_states, rk4_flow
 from .params import MAX_STATIONS, MAX_STEPS, N_NOISE, N_STATES, N_STATION_MEAS, OrbitParams
 
 _n_runs = optional(partial(require_int, minimum=1, maximum=MAX_SEED))
@@ -126,8 +127,13 @@ def simulate_measurements(truth, params: OrbitParams | None = None, seed=None, f
     if truth.ndim < 2:
         raise ValueError(f"truth must have shape (..., K, 4), got {truth.shape}")
     d, st = relative_states(truth, p.dt * np.arange(truth.shape[-2]), p)  # stations once per step
-    y = wrap_phi(measure_relative(d) + _gaussian(rng, p.Rtrue, truth.shape[:-1] + (p.n_stations,)))
-    y[~horizon(d, st)] = np.nan
+    # in place, each large temporary freed before the next is made (the Monte Carlo's peak memory)
+    y = measure_relative(d)
+    hidden = ~horizon(d, st)
+    del d
+    y += _gaussian(rng, p.Rtrue, truth.shape[:-1] + (p.n_stations,))
+    y[..., PHI] = wrap_angle(y[..., PHI])
+    y[hidden] = np.nan
     if not first:
         y[..., 0, :, :] = np.nan
     return y
