@@ -89,41 +89,58 @@ def chi2_sum_bounds(dof, n, alpha: float = 0.05):
     return stats.chi2.ppf(alpha / 2, dof) / n, stats.chi2.ppf(1 - alpha / 2, dof) / n
 
 
+def _step_dof(name: str, value):
+    """``dof`` of :func:`step_checks`: one int >= 1, or a (runs, steps) array of finite numbers."""
+    if np.ndim(value) == 0:
+        return require_int(name, value, minimum=1, maximum=10**6)
+    return require_finite_array(name, value, shape=(None, None))
+
+
 @checked(nees=partial(require_finite_array, shape=(None, None)),
-         nis=partial(require_finite_array, shape=(None, None), allow_nan=True),
-         dof=partial(require_finite_array, shape=(None, None)))
+         nis=partial(require_finite_array, shape=(None, None), allow_nan=True), dof=_step_dof)
 def step_checks(nees, nis, dof, n_states: int, alpha: float = 0.05, extra_entries: int = 0) -> dict:
     """Per-step NEES and NIS checks of N runs whose measurement dimension changes from step to step.
 
     nees : (N, K) NEES of a state of ``n_states`` components; nis : (N, K) NIS, NaN where a run had no
     measurement; dof : (N, K) ints, the NIS's degrees of freedom (the measurement dimension present,
-    0 without one).  At step k the run-averaged NEES is chi-square with ``N n_states`` dof over N; the NIS
-    averaged over the ``n_k`` runs with a measurement is chi-square with ``sum_r dof[r, k]`` dof (the
-    dimensions actually present, which may differ between runs) over ``n_k``; a step where no run has a
-    measurement is left out.  The pointwise band is at ``alpha``, the simultaneous (Bonferroni) one at
-    ``alpha / (entries of both checks + extra_entries)`` (``extra_entries``: those of other checks judged
-    with them).
+    0 without one), or one int >= 1 when every NIS present has that dimension (then a NaN NIS is what
+    marks a run without a measurement).  At step k the run-averaged NEES is chi-square with
+    ``N n_states`` dof over N; the NIS averaged over the ``n_k`` runs with a measurement is chi-square
+    with ``sum_r dof[r, k]`` dof (the dimensions actually present, which may differ between runs) over
+    ``n_k``; a step where no run has a measurement is left out.  The pointwise band is at ``alpha``, the
+    simultaneous (Bonferroni) one at ``alpha / (entries of both checks + extra_entries)``
+    (``extra_entries``: those of other checks judged with them).
 
     Returns ``{"nees": Check, "nis": Check}`` (:class:`Check`; ``expected`` is ``n_states`` and the mean
     dof per step).
     """
-    if nees.ndim != 2 or nis.shape != nees.shape or dof.shape != nees.shape:
+    fixed = np.ndim(dof) == 0
+    if nees.ndim != 2 or nis.shape != nees.shape or not (fixed or dof.shape == nees.shape):
         raise ValueError(f"nees, nis and dof must have the same shape (n_runs, K), got {nees.shape}, {nis.shape}, "
-                         f"{dof.shape}")
+                         f"{np.shape(dof)}")
     n_states = require_int("n_states", n_states, minimum=1, maximum=10**6)
     alpha = require_significance("alpha", alpha)
     extra_entries = require_int("extra_entries", extra_entries, minimum=0, maximum=10**12)
-    if np.any(dof < 0) or np.any(dof != np.round(dof)):
-        raise ValueError("dof must hold integers >= 0")
-    dof = dof.astype(int)
-    present = dof > 0
-    if np.any(np.isfinite(nis) != present) or not np.isfinite(nees).all():
-        raise ValueError("nis must be finite exactly where dof > 0, and nees finite everywhere")
+    if fixed:
+        present = np.isfinite(nis)
+    else:
+        if np.any(dof < 0) or np.any(dof != np.round(dof)):
+            raise ValueError("dof must hold integers >= 0")
+        dof = dof.astype(int)
+        present = dof > 0
+        if np.any(np.isfinite(nis) != present) or not np.isfinite(nees).all():
+            raise ValueError("nis must be finite exactly where dof > 0, and nees finite everywhere")
     n_runs = nees.shape[0]
     count = present.sum(axis=0)
     has = count > 0
-    total = dof.sum(axis=0)[has]
-    nis_mean = np.where(present, nis, 0.0).sum(axis=0)[has] / count[has]
+    zeroed = np.where(present, nis, 0.0)
+    # numpy sums the copied columns of the steps kept pairwise, the whole array run by run: each form keeps
+    # the last bits its problem's checks have always had (coop: one dof; orbit: the dof per run and step)
+    if fixed:
+        total, nis_sum = dof * count[has], zeroed[:, has].sum(axis=0)
+    else:
+        total, nis_sum = dof.sum(axis=0)[has], zeroed.sum(axis=0)[has]
+    nis_mean = nis_sum / count[has]
     a_sim = Check.bonferroni(alpha, nees.shape[1] + int(has.sum()) + extra_entries)
     out = {}
     for name, values, d, n, what in (

@@ -73,3 +73,29 @@ def test_step_checks_validate():
         step_checks(nees, nis, dof, 0)
     with pytest.raises(ValueError, match="dof must hold integers"):
         step_checks(nees, nis, dof + 0.5, 4)
+
+
+def test_one_dof_for_every_nis_present_is_the_array_of_that_dof():
+    """dof as one int (every NIS present has that dimension; a NaN NIS marks a run without a measurement)
+    gives the checks of the (N, K) array holding it where the NIS is finite."""
+    rng = np.random.default_rng(10)
+    n_runs, K = 30, 40
+    nis = rng.chisquare(3, size=(n_runs, K))
+    nis[:, ::4] = np.nan  # steps without a measurement in every run
+    nis[:5, 1] = np.nan  # and a step where some runs have none
+    nees = rng.chisquare(4, size=(n_runs, K))
+    dof = np.where(np.isfinite(nis), 3, 0)
+    one, array = step_checks(nees, nis, 3, 4, extra_entries=7), step_checks(nees, nis, dof, 4, extra_entries=7)
+    for name in ("nees", "nis"):
+        for field in ("expected", "lower", "upper", "sim_lower", "sim_upper"):
+            assert np.array_equal(getattr(one[name], field), getattr(array[name], field)), (name, field)
+        np.testing.assert_allclose(one[name].statistic, array[name].statistic, rtol=1e-14)
+        assert one[name].passed == array[name].passed
+    assert one["nis"].statistic.size == K - K // 4
+    np.testing.assert_allclose(one["nis"].statistic[0], nis[5:, 1].mean(), rtol=1e-14)  # step 1: 25 runs
+    assert one["nis"].lower[0] == stats.chi2.ppf(0.025, 3 * 25) / 25
+    for bad, message in ((0, "dof must be"), (2.5, "dof must be"), (np.full((2, 2), 3), "same shape")):
+        with pytest.raises(ValueError, match=message):
+            step_checks(nees, nis, bad, 4)
+    with pytest.raises(ValueError, match="nis must hold only finite numbers or NaN"):
+        step_checks(nees, np.where(np.isnan(nis), np.inf, nis), 3, 4)

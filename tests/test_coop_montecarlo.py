@@ -1,5 +1,6 @@
 """The coop truth-model test on the shared Monte Carlo core: the core's seed policy over chunks, the
-redraw of any run (truth_model_draws), independence of the threads, the result's interface."""
+redraw of any run (truth_model_draws), independence of the threads, the result's interface, its NEES and
+NIS checks against their chi-square bands written out from scipy."""
 
 import pathlib
 from dataclasses import replace
@@ -103,3 +104,59 @@ def test_no_process_pool_in_the_package():
         text = path.read_text(encoding="utf-8")
         assert "multiprocessing" not in text and "ProcessPoolExecutor" not in text, path
         assert 'get_context("fork")' not in text and "os.fork" not in text, path
+
+
+def _chi2_band(dim, n_runs, level):
+    """The band of a run average of chi-square(dim) terms, written out from scipy."""
+    from scipy import stats
+    return stats.chi2.ppf(level / 2, dim * n_runs) / n_runs, stats.chi2.ppf(1 - level / 2, dim * n_runs) / n_runs
+
+
+@pytest.mark.parametrize("filter,seed,n_runs,settings", [
+    ("lkf", 3, 7, dict(every=2)),
+    ("ekf", 5, 6, dict(alpha=0.01, measurements=(0, 2, 4))),
+    ("ukf", 8, 9, dict(every=3, measurements=(1, 3))),
+    ("ekf", 1, 8, dict(Q=0.01 * CoopParams().Qtrue)),  # an overconfident filter: the NEES fails
+])
+def test_the_nees_and_nis_checks_are_the_run_averages_against_their_chi2_bands(filter, seed, n_runs, settings):
+    """Per step: the run-averaged NEES against chi2(6 N)/N, the run-averaged NIS at the steps with a
+    measurement against chi2(m N)/N (m = the measurements used), each with its pointwise band at alpha and
+    its simultaneous band at alpha / (all entries of the three checks); inside fraction, worst and verdict
+    as defined by Check.  Equal to the last bit to the formulas written out here."""
+    mc = truth_model_test(replace(CoopParams(), duration=5.0), n_runs, seed, filter=filter, workers=1, **settings)
+    checks = mc.checks()
+    N, K = mc.nees.shape
+    has = np.isfinite(mc.nis).all(axis=0)
+    assert 0 < has.sum() < K  # no measurement at t = 0, nor between the kept ones with every > 1
+    a_sim = mc.alpha / (6 * K + K + int(has.sum()))
+    m = len(mc.measurements)
+    assert m == len(settings.get("measurements", range(5)))
+    for name, statistic, dim in (("nees", mc.nees.mean(axis=0), 6), ("nis", mc.nis[:, has].mean(axis=0), m)):
+        c = checks[name]
+        assert c.name == name and np.array_equal(c.statistic, statistic), name
+        assert np.array_equal(c.expected, np.full(statistic.size, float(dim))), name
+        for got, want in zip((c.lower, c.upper, c.sim_lower, c.sim_upper),
+                             (*_chi2_band(dim, N, mc.alpha), *_chi2_band(dim, N, a_sim))):
+            assert np.array_equal(got, np.full(statistic.size, want)), name
+        lo, hi = _chi2_band(dim, N, mc.alpha)
+        slo, shi = _chi2_band(dim, N, a_sim)
+        assert c.inside_fraction == np.mean((statistic >= lo) & (statistic <= hi)), name
+        dev = statistic - dim
+        worst = np.max(np.abs(dev) / np.where(dev >= 0, shi - dim, dim - slo))
+        assert c.worst == worst and c.passed == (worst <= 1.0), name
+    # the mean error's simultaneous band shares the same split
+    t = checks["mean_error"]
+    from scipy import stats
+    np.testing.assert_allclose(t.sim_upper / t.upper, stats.t.ppf(1 - a_sim / 2, N - 1) / stats.t.ppf(
+        1 - mc.alpha / 2, N - 1), rtol=1e-12)
+    if "Q" in settings:
+        assert not checks["nees"].passed and checks["nees"].worst > 1
+
+
+def test_a_result_with_a_diverged_run_is_refused_not_judged(mc):
+    """The batch refuses a diverged run (ValueError 'diverged'); a result that holds one anyway (built by
+    hand) gets a one-line ValueError from checks(), never a verdict computed from inf or NaN."""
+    bad = replace(mc, nees=mc.nees.copy())
+    bad.nees[3, 1] = np.inf
+    with pytest.raises(ValueError, match="^nees must hold only finite numbers"):
+        bad.checks()

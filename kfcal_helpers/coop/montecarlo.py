@@ -20,9 +20,10 @@ step with probability 1 - alpha (:func:`kfcal_helpers.consistency.chi2_bounds`).
 
 :meth:`MonteCarloResult.checks` turns these into verdicts, as the calibration Monte Carlo
 does: the mean error (per step and state, against ``+-t_{N-1} s/sqrt(N)``), the NEES and
-the NIS, each with its pointwise band and a simultaneous (Bonferroni) band split over
-all entries of the three checks, so that a consistent filter fails any of them with
-probability at most ``alpha``.
+the NIS (per step, by :func:`kfcal_helpers.consistency.step_checks`, as in the orbit problem), each
+with its pointwise band and a simultaneous (Bonferroni) band split over all entries of the three
+checks, so that a consistent filter fails any of them with probability at most ``alpha``.  A diverged
+run is an error, not a FAIL (:meth:`MonteCarloResult.checks`).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import montecarlo as core
-from ..consistency import Check, chi2_bounds, inside_fraction, t_band
+from ..consistency import Check, chi2_bounds, inside_fraction, step_checks, t_band
 from functools import partial
 
 from ..validation import (MAX_SEED, checked, optional, require_instance, require_int, require_seed,
@@ -117,24 +118,24 @@ class MonteCarloResult:
 
         * ``mean_error``: run mean of each error component (K x 6 entries, m or rad) against 0,
           band ``+-t_{N-1}(1 - a/2) s / sqrt(N)`` with s the ensemble standard deviation;
-        * ``nees``: run-averaged NEES per step (K entries) against ``chi2_{6N}/N``;
-        * ``nis``: run-averaged NIS per step with a measurement against ``chi2_{mN}/N`` (m = the number of measurements used).
+        * ``nees`` and ``nis`` per step (:func:`~kfcal_helpers.consistency.step_checks`): the run-averaged
+          NEES (K entries) against ``chi2_{6N}/N``, the run-averaged NIS at the steps with a measurement
+          against ``chi2_{mN}/N`` (m = the number of measurements used).
 
-        The simultaneous band uses ``a = alpha / (all entries of the three checks)``.
+        The simultaneous band uses ``a = alpha / (all entries of the three checks)``.  A run that
+        diverged never reaches a verdict: the batch refuses it (ValueError "the EKF diverged ... in run
+        i", one line on the command line), and a result holding a non-finite NEES or NIS anyway gets a
+        ValueError here, since a FAIL computed from inf or NaN would say nothing.
         """
         if self.n_runs < 2:
             raise ValueError("n_runs must be at least 2 for the checks (an ensemble standard deviation)")
         n = self.n_runs
-        has = np.isfinite(self.nis).all(axis=0)
-        a_sim = Check.bonferroni(self.alpha, self.errors[0].size + self.nees.shape[1] + int(has.sum()))
-        mean, std = _mean_std(self.errors)
-        mean, std = mean.ravel(), std.ravel()
-        out = {"mean_error": Check.from_band("mean_error", "run mean of the error, per step and state", mean, 0.0,
-                                             lambda a: (-t_band(std, n, a), t_band(std, n, a)), self.alpha, a_sim)}
-        for name, dim, values in (("nees", N_STATES, self.nees_mean), ("nis", len(self.measurements), self.nis_mean[has])):
-            out[name] = Check.from_band(name, f"run-averaged {name.upper()} per step", values, dim,
-                                        partial(chi2_bounds, dim, n), self.alpha, a_sim)
-        return out
+        mean, std = (a.ravel() for a in _mean_std(self.errors))
+        out = step_checks(self.nees, self.nis, len(self.measurements), N_STATES, self.alpha, extra_entries=mean.size)
+        a_sim = Check.bonferroni(self.alpha, mean.size + out["nees"].statistic.size + out["nis"].statistic.size)
+        error = Check.from_band("mean_error", "run mean of the error, per step and state", mean, 0.0,
+                                lambda a: (-t_band(std, n, a), t_band(std, n, a)), self.alpha, a_sim)
+        return {"mean_error": error, **out}
 
     def summary(self) -> dict:
         """Plain-Python summary (for JSON): bounds, inside fractions, time averages."""
@@ -287,7 +288,8 @@ def truth_model_test(params: CoopParams | None = None, n_runs: int = 50, seed=0,
     Returns
     -------
     MonteCarloResult (with ``seconds``, the wall time).  ValueError, before any work, when the test
-    would need more than 500 MB (the per-run arrays: 112 kB per run of 1001 steps) or an hour.
+    would need more than 500 MB (the per-run arrays: 112 kB per run of 1001 steps) or an hour; ValueError
+    naming ``y`` when a run diverges (a non-finite estimate, NEES or NIS: no checks are judged).
     """
     exp = _experiment(params, filter, alpha, every, settings)  # checks alpha (n_runs: @checked, seed: core.run)
     desc = desc or f"{exp.setup.filter.upper()} truth-model test"
