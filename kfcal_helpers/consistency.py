@@ -133,14 +133,8 @@ def step_checks(nees, nis, dof, n_states: int, alpha: float = 0.05, extra_entrie
     n_runs = nees.shape[0]
     count = present.sum(axis=0)
     has = count > 0
-    zeroed = np.where(present, nis, 0.0)
-    # numpy sums the copied columns of the steps kept pairwise, the whole array run by run: each form keeps
-    # the last bits its problem's checks have always had (coop: one dof; orbit: the dof per run and step)
-    if fixed:
-        total, nis_sum = dof * count[has], zeroed[:, has].sum(axis=0)
-    else:
-        total, nis_sum = dof.sum(axis=0)[has], zeroed.sum(axis=0)[has]
-    nis_mean = nis_sum / count[has]
+    total = dof * count[has] if fixed else dof.sum(axis=0)[has]
+    nis_mean = np.where(present, nis, 0.0)[:, has].sum(axis=0) / count[has]
     a_sim = Check.bonferroni(alpha, nees.shape[1] + int(has.sum()) + extra_entries)
     out = {}
     for name, values, d, n, what in (
