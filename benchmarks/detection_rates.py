@@ -16,7 +16,8 @@ so far; the repetitions' seeds depend only on (SEED, N, repetition)).  ``tests/t
 recomputes a subset of each and checks it.  Cost of the seven checks' table: 7 x 8 x 200 = 11,200 Monte
 Carlos, about 50 ms each plus 0.1 ms per realization on an idle core (about 15 minutes); it took 33 minutes
 on a 2-core machine under a load average of 3 to 11.  The four checks' table took 140 s of CPU time (15 minutes
-under a load average of 7 to 9).  The load average, the wall time and this process's CPU time are printed
+under a load average of 7 to 9).  Rerun for the one Bonferroni policy on 2026-12-04 (one worker): the seven
+checks' table 429 s of CPU time (11 minutes under a load average of 2 to 5), the four's 126 s (3 minutes).  The load average, the wall time and this process's CPU time are printed
 after each N.
 """
 

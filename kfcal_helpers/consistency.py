@@ -286,10 +286,10 @@ class Check:
     statistic, expected : 1-D arrays, one entry per judged quantity (see the module docstring)
     lower, upper : the pointwise band at significance ``alpha`` (about ``1 - alpha``
         of the entries of a consistent filter fall inside)
-    sim_lower, sim_upper : the simultaneous band (Bonferroni: significance
-        ``alpha / (entries x checks)`` per entry), which a consistent filter leaves
-        nowhere, in all the checks of a test together, with probability at least
-        ``1 - alpha`` whatever the correlation between entries
+    sim_lower, sim_upper : the simultaneous band (Bonferroni: significance ``alpha / entries``
+        per entry, ``entries`` the total over the checks judged together, :meth:`bonferroni`),
+        which a consistent filter leaves nowhere, in all those checks together, with probability
+        at least ``1 - alpha`` whatever the correlation between entries
     inside_fraction : share of entries inside the pointwise band
     worst : largest ``|statistic - expected|`` as a multiple of the distance from
         ``expected`` to the simultaneous bound on that side (> 1 means outside)
@@ -342,17 +342,15 @@ class Check:
         return cls(name, description, statistic, *full)
 
     @staticmethod
-    def bonferroni(alpha: float, entries: int, n_checks: int = 1) -> float:
-        """Per-entry significance of a simultaneous band: ``alpha / n_checks / entries``, so that a
-        consistent filter leaves some entry outside with probability at most ``alpha`` (union bound).
+    def bonferroni(alpha: float, entries: int) -> float:
+        """Per-entry significance of a simultaneous band: ``alpha / entries``, so that a consistent
+        filter leaves some entry outside with probability at most ``alpha`` (union bound).
 
-        The course's policy, for every new problem: the checks of a test are one family, ``entries``
-        their total number of entries and ``n_checks`` 1 (coop, orbit, :func:`step_checks`).
-        Calibration instead gives each of its seven checks an equal share ``alpha / 7``, split over
-        that check's own entries (``n_checks=7``, ``entries`` the check's); its notebooks' printed
-        verdicts rest on that split, so it is kept.
+        The course's one policy, in every problem: the checks judged together in one verdict are one
+        family, and ``entries`` is their total number of entries (coop, orbit, :func:`step_checks`, and
+        calibration's seven checks, or the subset of them asked for).
         """
-        return alpha / n_checks / entries
+        return alpha / entries
 
 
 @runtime_checkable

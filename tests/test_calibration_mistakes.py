@@ -95,7 +95,8 @@ def test_phi02_sign_is_caught_by_the_model_identity():
 def test_phi02_sign_fails_only_the_orthogonality_check_at_5000():
     """The wrong Phi puts (Phi - Phi') x_hat into the prediction error, correlating the error with the
     estimate: at N = 5000 (seed 0, as notebook 14) the orthogonality check fails, in the position error's row
-    against the velocity and bias estimates, and no other check does; the correct filter passes all seven."""
+    against the bias estimate (against the velocity estimate it comes close, 0.96 of the band), and no other
+    check does; the correct filter passes all seven."""
     checks = {m: run_monte_carlo(P, 5000, seed=0, model=mistaken_model(P, m)).checks() for m in ("correct", "phi02_sign")}
     assert all(c.passed for c in checks["correct"].values())
     assert [n for n, c in checks["phi02_sign"].items() if not c.passed] == ["orthogonality"]
@@ -103,7 +104,10 @@ def test_phi02_sign_fails_only_the_orthogonality_check_at_5000():
     dev = orth.statistic - orth.expected
     half = np.where(dev >= 0, orth.sim_upper - orth.expected, orth.expected - orth.sim_lower)
     outside = (np.abs(dev) > half).reshape(P.n_gps, 3, 3).any(axis=0)     # (error component, estimate component)
-    assert outside[0, 1] and outside[0, 2] and not outside[1:].any()
+    assert outside[0, 2] and outside.sum() == 1
+    with np.errstate(invalid="ignore", divide="ignore"):   # entries of zero deviation and zero band (t = 0)
+        ratio = np.where(dev == 0, 0.0, np.abs(dev) / half).reshape(P.n_gps, 3, 3).max(axis=0)
+    assert 0.9 < ratio[0, 1] < 1
 
 
 @pytest.mark.parametrize("bad", ["wrong_sign", "", None])

@@ -205,10 +205,11 @@ def cases():
                     ("z_rounded", np.tanh(np.arctanh(0.8) + np.array([-1.96, 1.96]) / np.sqrt(297))),
                     ("z_two", np.tanh(np.arctanh(0.8) + np.array([-2.0, 2.0]) / np.sqrt(297)))], [])
     # 06.3 --------------------------------------------------------------------------------
-    lvl = 0.05 / 1057
+    # the seven checks' entries at 151 fixes: 3 + 6 + 9 + 2 + 1 + 1 per fix and 4 per pair of fixes, one family
+    lvl = 0.05 / (151 * (3 + 6 + 9 + 2 + 1 + 1) + 4 * (151 * 150 // 2))
     out["06.3"] = (ex.check_simultaneous_nees_band, two_sided(3000, 1000, lvl),
                    [("pointwise", two_sided(3000, 1000)), ("fixes_only", two_sided(3000, 1000, 0.05 / 151)),
-                    ("checks_only", two_sided(3000, 1000, 0.05 / 7)), ("one_sided", two_sided(3000, 1000, 2 * lvl)),
+                    ("per_check", two_sided(3000, 1000, 0.05 / 7 / 151)), ("one_sided", two_sided(3000, 1000, 2 * lvl)),
                     ("dim2", two_sided(2000, 1000, lvl)), ("sum", two_sided(3000, 1, lvl)),
                     ("dof3", two_sided(3, 1, lvl))], [])
     # 07.1 --------------------------------------------------------------------------------
@@ -688,6 +689,22 @@ def test_03_1_numbers_have_one_home_that_the_source_notebook_agrees_with():
     assert f"**Exercise 03.1 — fixes at {rate} Hz.** With a 200 Hz IMU and a {rate} Hz GPS" in text
     assert f"steps = 200 // {rate}\n" in text and f"$200/{rate} = " in text
     assert f"{rate} Hz" in EXERCISES["03.1"].praise and f"({rate} Hz)" in EXERCISES["03.1"].hints["rate"]
+
+
+def test_06_3_numbers_are_the_package_s_family_and_the_source_notebook_agrees():
+    """06.3's family is the seven checks judged together: the entries it counts are those run_monte_carlo's
+    checks() split alpha over, and the exercise text and worked solution say so."""
+    from pathlib import Path
+
+    from kfcal_helpers.calibration import CHECK_NAMES, run_monte_carlo
+
+    mc = run_monte_carlo(CalibrationParams(), 5, seed=0)
+    assert ex.SIMULTANEOUS_NEES_ENTRIES == sum(c.statistic.size for c in mc.checks().values()) == sum(
+        mc.entries(n) for n in CHECK_NAMES)
+    text = (Path(__file__).parents[1] / "notebooks" / "source" / "06_monte_carlo_validation.md").read_text(encoding="utf-8")
+    n = ex.SIMULTANEOUS_NEES_ENTRIES
+    assert f"entries, {n:,} at the 151 fixes" in text and f"0.05 / {n}\n" in text and f"0.05/{n}$" in text
+    assert f"{n:,}" in EXERCISES["06.3"].praise and f"{n:,}" in EXERCISES["06.3"].hints["per_check"]
 
 
 @pytest.mark.parametrize("factor", [10.0, 100.0, 1000.0, 0.1, 0.01, 0.001])

@@ -20,8 +20,8 @@ __all__ = ["add_parser", "run", "result_to_dict", "output_bytes", "plan_between_
 COLUMNS_LEGEND = (
     "inside: share of the check's entries (fixes, components, pairs) inside their 95% band; "
     "about 0.95 for a consistent filter\n"
-    "worst:  the largest deviation as a multiple of the simultaneous band (all entries and checks "
-    "together); pass when <= 1, FAIL when > 1")
+    "worst:  the largest deviation as a multiple of the simultaneous band (all entries of the seven checks "
+    "together; between_fixes a family of its own); pass when <= 1, FAIL when > 1")
 #: printed with --truth analytic when a check fails
 MISMATCH_NOTE = (
     "FAIL rows are the intended model-mismatch demonstration: --truth analytic simulates the exact "

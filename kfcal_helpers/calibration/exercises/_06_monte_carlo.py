@@ -79,16 +79,32 @@ def check_fisher_band(answer, *, rho: float = 0.8, n_runs: int = 300, alpha: flo
     return numeric(_FISHER_BAND, answer, right, wrong)
 
 
+def seven_check_entries(n_fixes: int) -> int:
+    """The number of entries of the seven checks together at ``n_fixes`` fixes, none missing: 3 + 6 + 9
+    per fix (mean error, covariance, orthogonality), 4 per pair of fixes (residual independence), 2 per
+    fix (residual variance), 1 + 1 per fix (NEES, NIS): ``22 n + 2 n (n - 1)``."""
+    n = require_int("n_fixes", n_fixes, minimum=2)
+    return 22 * n + 2 * n * (n - 1)
+
+
+#: the verdict's family of exercise 06.3: the fixes of the default run and the entries of its seven checks
+SIMULTANEOUS_NEES_FIXES = 151
+SIMULTANEOUS_NEES_ENTRIES = seven_check_entries(SIMULTANEOUS_NEES_FIXES)   # 48,622
+
 _SIMULTANEOUS_NEES_BAND = Exercise(
     "06.3",
-    praise="the simultaneous band is wider: every one of the 151 fixes must pass",
-    hint="the per-entry significance is (α/7)/151 (α/7 per check, shared by its 151 fixes); then the usual "
-         "χ²_{3N}/N band",
+    praise=f"the simultaneous band is wider: every one of the {SIMULTANEOUS_NEES_ENTRIES:,} entries of the seven "
+           f"checks must pass",
+    hint=f"the per-entry significance is α/{SIMULTANEOUS_NEES_ENTRIES:,} (α shared by all entries of the seven "
+         f"checks, judged together); then the usual χ²_{{3N}}/N band",
     hints={
-        "pointwise": "that is the pointwise band: the simultaneous one gives each check α/7, then splits that over "
-                     "the check's entries",
-        "fixes_only": "α is first split over the seven checks (α/7 each), then over the 151 fixes of the NEES check",
-        "checks_only": "α/7 is the NEES check's share; it is then split over its 151 fixes",
+        "pointwise": "that is the pointwise band: the simultaneous one splits α over every entry of the seven "
+                     "checks together",
+        "fixes_only": f"the verdict judges the seven checks together: α is split over all their "
+                      f"{SIMULTANEOUS_NEES_ENTRIES:,} entries, not over the NEES check's {SIMULTANEOUS_NEES_FIXES} "
+                      f"fixes alone",
+        "per_check": f"that gives each check α/7 of its own; the course's one policy splits α over all "
+                     f"{SIMULTANEOUS_NEES_ENTRIES:,} entries of the seven checks together",
         "one_sided": "each entry's two-sided band puts half of its share of α in each tail",
         "dim2": "the NEES is a quadratic form in the 3-dimensional error: χ² with 3N degrees of freedom",
         "sum": "these bound the SUM of the N NEES values; the check uses their run average: divide by N",
@@ -99,19 +115,19 @@ _SIMULTANEOUS_NEES_BAND = Exercise(
 )
 
 
-def check_simultaneous_nees_band(answer, *, n_runs: int = 1000, n_fixes: int = 151, n_checks: int = 7,
+def check_simultaneous_nees_band(answer, *, n_runs: int = 1000, n_fixes: int = SIMULTANEOUS_NEES_FIXES,
                                  alpha: float = 0.05) -> Feedback:
     """Exercise 06.3: the simultaneous (Bonferroni) band ``[lower, upper]`` of the run-averaged
-    NEES at each of ``n_fixes`` fixes: ``alpha / n_checks`` per check, split equally over the
-    check's ``n_fixes`` entries (as :meth:`MonteCarloResult.checks` does)."""
+    NEES at each of ``n_fixes`` fixes, when the seven checks are judged together (as
+    :meth:`MonteCarloResult.checks` does): per-entry significance ``alpha`` over the seven checks'
+    entries, :func:`seven_check_entries` (48,622 for 151 fixes)."""
     N = require_int("n_runs", n_runs, minimum=2)
     n_fixes = require_int("n_fixes", n_fixes, minimum=2)
-    n_checks = require_int("n_checks", n_checks, minimum=2)
     alpha = require_probability("alpha", alpha)
-    level = alpha / (n_fixes * n_checks)
+    level = alpha / seven_check_entries(n_fixes)
     right = chi2_bounds(3, N, level)
     wrong = [("pointwise", chi2_average_bounds(3, N, alpha)), ("fixes_only", chi2_average_bounds(3, N, alpha / n_fixes)),
-             ("checks_only", chi2_average_bounds(3, N, alpha / n_checks)),
+             ("per_check", chi2_average_bounds(3, N, alpha / 7 / n_fixes)),
              ("one_sided", chi2_average_bounds(3, N, level, one_sided=True)),
              ("dim2", chi2_average_bounds(2, N, level)),
              ("sum", chi2_average_bounds(3, N, level, divide_by=1)),
