@@ -1,7 +1,7 @@
 """The orbit-determination live demo (notebook 24): the filter runs it draws from, and the figure it redraws.
 
-A filterpy run of the EKF or UKF over the log's 1401 steps takes longer than a redraw may (about 0.3 s and
-0.4 s on a quiet 2-core machine, ``benchmarks/bench_demos.py``), so the runs are done once, before the demo starts: :class:`OrbitDemoRuns`
+A filterpy run of the EKF or UKF over the log's 1401 steps takes longer than a redraw may (roughly 0.2-0.3 s and
+0.3-0.5 s on a quiet 2-core machine, ``benchmarks/bench_demos.py``), so the runs are done once, before the demo starts: :class:`OrbitDemoRuns`
 (:func:`precompute_orbit_demo`) holds :func:`~kfcal_helpers.orbit.filters.run_filter`'s result of each
 filter at each scale of a small grid, ``Q = q_scale * Qtrue`` with ``q_scale`` in :data:`Q_SCALES`, and the
 per-step chi-square band of the NIS from the degrees of freedom present at each step (3 per station
