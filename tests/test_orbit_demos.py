@@ -14,7 +14,7 @@ from scipy import stats  # noqa: E402
 
 from kfcal_helpers.demos import LiveDemo, figure_png  # noqa: E402
 from kfcal_helpers.orbit import OrbitParams, log_params, run_filter, simulate, station_states  # noqa: E402
-from kfcal_helpers.orbit.demos import (LIVE_FIGSIZE, ORBIT_DEMO_FILTERS, Q_SCALES, OrbitDemo,  # noqa: E402
+from kfcal_helpers.orbit.demos import (LIVE_FIGSIZE, LIVE_HINT, ORBIT_DEMO_FILTERS, Q_SCALES, OrbitDemo,  # noqa: E402
                                        OrbitDemoFigure, compute_orbit_demo, orbit_controls, precompute_orbit_demo)
 
 from demo_checks import (check_render, fast_draw_is_full_draw, legend_is_outside_the_panels,  # noqa: E402
@@ -33,8 +33,9 @@ def runs(log):
 
 
 def _live(runs):
+    """The live demo as notebook 24 builds it."""
     return LiveDemo(orbit_controls(runs), lambda **kw: compute_orbit_demo(runs, **kw),
-                    OrbitDemoFigure(Figure(figsize=LIVE_FIGSIZE)))
+                    OrbitDemoFigure(Figure(figsize=LIVE_FIGSIZE)), hint=LIVE_HINT)
 
 
 @pytest.mark.parametrize("filter", ORBIT_DEMO_FILTERS)
@@ -81,7 +82,7 @@ def test_too_small_a_q_puts_the_nis_above_its_bounds(runs):
     ({"filter": "lkf"}, "filter"), ({"filter": 3}, "filter"),
     ({"q_scale": 0.5}, "q_scale"), ({"q_scale": float("nan")}, "q_scale"), ({"q_scale": True}, "q_scale"),
     ({"q_scale": "1"}, "q_scale"), ({"q_scale": 0.0}, "q_scale"),
-    ({"t": 5.0}, "t"), ({"t": -10.0}, "t"), ({"t": 1e9}, "t"), ({"t": float("inf")}, "t"), ({"t": "0"}, "t"),
+    ({"t": -10.0}, "t"), ({"t": -1e-3}, "t"), ({"t": 1e9}, "t"), ({"t": float("inf")}, "t"), ({"t": "0"}, "t"),
 ])
 def test_compute_orbit_demo_validates(runs, kwargs, name):
     with pytest.raises(ValueError, match=name):
@@ -143,7 +144,7 @@ def test_the_live_demo_follows_the_controls(runs, log):
 
 
 @pytest.mark.parametrize("values", [
-    {"q_scale": 0.5}, {"q_scale": float("nan")}, {"q_scale": 1e300}, {"t": 12.5}, {"t": float("nan")},
+    {"q_scale": 0.5}, {"q_scale": float("nan")}, {"q_scale": 1e300}, {"t": float("nan")},
     {"t": -1e9}, {"filter": "lkf"},
 ])
 def test_bad_values_draw_a_one_line_message(runs, values):
@@ -151,6 +152,80 @@ def test_bad_values_draw_a_one_line_message(runs, values):
     warning or NaN."""
     live = _live(runs)
     assert check_render(live, values) is False
+
+
+def test_a_typed_time_between_samples_draws_the_nearest_sample(runs, log):
+    """The t readout takes typed values that ipywidgets clamps to the slider's range but does not round to its
+    step: the demo draws the nearest sample time (halfway: the earlier one); outside the log, an error naming t."""
+    assert float(log.t[21]) == 210.0 and float(log.t[1] - log.t[0]) == 10.0
+    for typed, shown in ((215.0, 210.0), (215.001, 220.0), (212.5, 210.0), (0.4, 0.0), (float(log.t[-1]) - 3, float(log.t[-1]))):
+        demo = compute_orbit_demo(runs, "ekf", 1.0, typed)
+        assert demo.time == shown and demo.t[demo.step] == shown, (typed, demo.time)
+    live = _live(runs)
+    live.controls["t"].value = 215.0
+    assert not live.failed and "t = 210 s:" in live.line.value
+    assert check_render(live, {"t": 2345.6})
+    with pytest.raises(ValueError, match="t must"):
+        compute_orbit_demo(runs, t=float(log.t[-1]) + 1.0)
+
+
+def test_an_off_stop_q_names_the_q_slider(runs):
+    """A Q / Qtrue typed between the slider's stops (no run was made for it): one line that says why and names the
+    Q slider and its stops, no traceback, warning or NaN."""
+    import warnings
+
+    live = _live(runs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        live.controls["q_scale"].value = 0.5
+    assert live.failed and "\n" not in live.line.value
+    assert "q_scale must be one of the precomputed scales" in live.line.value
+    assert "the Q / Qtrue slider has only its six precomputed stops" in live.line.value
+    assert "nan" not in live.line.value.lower()
+
+
+def test_the_title_says_which_stations_measured(runs, log):
+    """The title names the stations whose measurements the log holds at the step shown, not the ones above their
+    horizon: at t = 0 the log has no measurement although station 1 is above its horizon."""
+    first = compute_orbit_demo(runs, "ekf", 1.0, 0.0)
+    assert first.seen.size == 0 and first.seen_text() == "no station measurement at this step"
+    two = compute_orbit_demo(runs, "ekf", 1.0, 210.0)
+    assert two.seen.tolist() == [0, 1] and two.seen_text() == "stations 1, 2 measured"
+    one = compute_orbit_demo(runs, "ekf", 1.0, 10.0)
+    assert one.seen.size == 1 and one.seen_text() == f"station {one.seen[0] + 1} measured"
+    view = OrbitDemoFigure(Figure(figsize=LIVE_FIGSIZE))
+    assert "t = 0 s: no station measurement at this step" in view.update(first).get_suptitle()
+
+
+def test_the_default_time_is_a_two_station_step_in_the_middle_of_the_log(runs, log):
+    """The default time is away from the first minutes (where the cursor would sit on the panels' left edge, on the
+    prior's 2 sigma lines): the step with two stations nearest the middle of the log."""
+    two = log.t[runs.dof == 6]
+    middle = 0.5 * (log.t[0] + log.t[-1])
+    assert runs.default_time == two[np.argmin(np.abs(two - middle))]
+    assert 0.25 * log.t[-1] < runs.default_time < 0.75 * log.t[-1]
+    assert compute_orbit_demo(runs).seen.size == 2
+
+
+def test_the_error_panels_have_their_own_time_labels(runs):
+    """The four error panels are half as wide as the NIS panel: the lower row labels its own time axis (a reader
+    must not read their times off the NIS panel's axis), and those labels do not run into the NIS panel."""
+    view = OrbitDemoFigure(Figure(figsize=LIVE_FIGSIZE))
+    view.update(compute_orbit_demo(runs))
+    view.draw()
+    renderer = view.fig.canvas.get_renderer()
+    nis_box = view.nis_ax.get_tightbbox(renderer)
+    for i, ax in enumerate(view.error_axes):
+        labels = [lab for lab in ax.get_xticklabels() if lab.get_visible() and lab.get_text()]
+        if i < 2:
+            assert not labels
+            continue
+        assert len(labels) >= 2, i
+        for lab in labels:
+            box = lab.get_window_extent(renderer)
+            assert box.y0 > view.nis_ax.get_window_extent(renderer).y1, (i, lab.get_text())
+            assert not box.overlaps(nis_box) or box.y0 >= nis_box.y1 - 1
+    assert fast_draw_is_full_draw(view)
 
 
 def test_every_stop_of_the_controls_draws(runs, log):

@@ -1,12 +1,12 @@
 """The orbit-determination live demo (notebook 24): the filter runs it draws from, and the figure it redraws.
 
-A filterpy run of the EKF or UKF over the 1400 steps takes longer than a redraw may (0.2 s and 0.4 s,
-``benchmarks/bench_demos.py``), so the runs are done once, before the demo starts: :class:`OrbitDemoRuns`
+A filterpy run of the EKF or UKF over the log's 1401 steps takes longer than a redraw may (roughly 0.2-0.3 s and
+0.3-0.5 s on a quiet 2-core machine, ``benchmarks/bench_demos.py``), so the runs are done once, before the demo starts: :class:`OrbitDemoRuns`
 (:func:`precompute_orbit_demo`) holds :func:`~kfcal_helpers.orbit.filters.run_filter`'s result of each
 filter at each scale of a small grid, ``Q = q_scale * Qtrue`` with ``q_scale`` in :data:`Q_SCALES`, and the
 per-step chi-square band of the NIS from the degrees of freedom present at each step (3 per station
 seen).  :func:`compute_orbit_demo` picks one run and one time of the log (no filtering: a redraw only
-selects and draws); :class:`OrbitDemoFigure` draws the orbit with the 12 stations, those whose
+selects and draws, at the sample time nearest the ``t`` asked for); :class:`OrbitDemoFigure` draws the orbit with the 12 stations, those whose
 measurements the filter used at that time and their lines of sight, the four estimation errors with the
 filter's +-2 sigma bounds and the NIS against its per-step band.  :func:`orbit_controls` builds the
 controls; the shared :class:`kfcal_helpers.demos.LiveDemo` puts them beside the figure's PNG.
@@ -26,7 +26,7 @@ from .filters import FilterResult, run_filter
 from .model import station_states
 from .simulation import OrbitLog
 
-__all__ = ["ORBIT_DEMO_FILTERS", "Q_SCALES", "LIVE_FIGSIZE", "ERROR_UNITS", "OrbitDemoRuns", "precompute_orbit_demo",
+__all__ = ["ORBIT_DEMO_FILTERS", "Q_SCALES", "LIVE_FIGSIZE", "LIVE_HINT", "ERROR_UNITS", "OrbitDemoRuns", "precompute_orbit_demo",
            "OrbitDemo", "compute_orbit_demo", "OrbitDemoFigure", "draw_orbit_demo", "orbit_controls"]
 
 ORBIT_DEMO_FILTERS = ("ekf", "ukf")
@@ -37,6 +37,9 @@ Q_SCALES = (0.01, 0.1, 1.0, 10.0, 100.0, 1000.0)
 #: shown pixel for pixel; with the controls in two rows above it and the two-line summary under it the whole
 #: demo fits that window (tests/test_browser_demos.py)
 LIVE_FIGSIZE = (9.1, 4.2)
+#: what the live demo (:class:`kfcal_helpers.demos.LiveDemo`) adds to a failed redraw's message: what each control
+#: accepts (a value typed into the Q readout between two stops has no run; a typed t is drawn at the nearest sample)
+LIVE_HINT = "the Q / Qtrue slider has only its six precomputed stops; t snaps to the nearest sample time"
 #: the four errors as drawn: state label, factor from the state's units (km, km/s) and the unit drawn
 ERROR_UNITS = (("X", 1e3, "m"), (r"\dot X", 1e3, "m/s"), ("Y", 1e3, "m"), (r"\dot Y", 1e3, "m/s"))
 
@@ -73,13 +76,17 @@ class OrbitDemoRuns:
 
     @property
     def default_time(self) -> float:
-        """The time the demo shows first (s): the first step whose measurements come from two or more stations
-        (a pass seen from two places), else the first with one, else the log's start."""
+        """The time the demo shows first (s): the step whose measurements come from two or more stations (a pass
+        seen from two places) nearest the middle of the log (the earlier of two as near), else the step with one
+        station nearest it, else the log's start.  The middle keeps the time cursor away from the panels' left
+        edge, where the prior's wide 2 sigma lines run."""
+        t = self.log.t
+        middle = 0.5 * (t[0] + t[-1])
         for least in (6, 3):
             steps = np.flatnonzero(self.dof >= least)
             if steps.size:
-                return float(self.log.t[steps[0]])
-        return float(self.log.t[0])
+                return float(t[steps[np.argmin(np.abs(t[steps] - middle))]])
+        return float(t[0])
 
     def result(self, filter: str, q_scale: float) -> FilterResult:
         """The run of ``filter`` ("ekf" or "ukf") with Q = ``q_scale`` Qtrue (a scale of :data:`Q_SCALES`)."""
@@ -160,11 +167,12 @@ class OrbitDemo:
         return "inside" if lo <= self.nis_mean <= hi else ("below" if self.nis_mean < lo else "above")
 
     def seen_text(self) -> str:
-        """Which stations (numbered 1..12, as in the course's logs) the filter used at the time shown."""
+        """Which stations (numbered 1..12, as in the course's logs) have a measurement in the log at the time shown:
+        the ones the filter used (a station above its horizon may have none, e.g. at the log's first step)."""
         if self.seen.size == 0:
-            return "no station sees the satellite"
+            return "no station measurement at this step"
         ids = ", ".join(str(i + 1) for i in self.seen)
-        return f"station{'s' if self.seen.size > 1 else ''} {ids} see{'' if self.seen.size > 1 else 's'} the satellite"
+        return f"station{'s' if self.seen.size > 1 else ''} {ids} measured"
 
     def summary(self) -> str:
         """One line: filter, Q scale, the time-averaged NIS and the share inside the per-step band, the stations
@@ -178,20 +186,20 @@ class OrbitDemo:
 def compute_orbit_demo(runs: OrbitDemoRuns, filter: str = "ekf", q_scale: float = 1.0, t: float | None = None) -> OrbitDemo:
     """One redraw of the demo from the precomputed ``runs``: no filtering, a selection.
 
-    filter : "ekf" or "ukf"; q_scale : a scale of :data:`Q_SCALES` (Q = q_scale Qtrue); t : a sample time of the
-    log (s, to 1e-6 s), the time whose pass geometry is drawn (default ``runs.default_time``).  Returns an
-    :class:`OrbitDemo`.
+    filter : "ekf" or "ukf"; q_scale : a scale of :data:`Q_SCALES` (Q = q_scale Qtrue); t : a time within the log
+    (s, from its first to its last sample time), whose pass geometry is drawn at the nearest sample time (the
+    earlier of two as near: a value typed into the t slider's readout, which ipywidgets keeps within the slider's
+    range but does not round to its step); default ``runs.default_time``.  Returns an :class:`OrbitDemo`.
     """
     require_instance("runs", runs, OrbitDemoRuns)
     t = runs.default_time if t is None else t
     res = runs.result(filter, q_scale)
     times = res.t
     if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not np.isfinite(t):
-        raise ValueError(f"t must be a sample time of the log (s), got {t!r}")
+        raise ValueError(f"t must be a time within the log (s), got {t!r}")
+    if not times[0] - 1e-6 <= float(t) <= times[-1] + 1e-6:
+        raise ValueError(f"t must be a time within the log ({times[0]:g} to {times[-1]:g} s), got {float(t):g}")
     step = int(np.argmin(np.abs(times - float(t))))
-    if abs(times[step] - float(t)) > 1e-6:
-        raise ValueError(f"t must be a sample time of the log ({times[0]:g} to {times[-1]:g} s every "
-                         f"{times[1] - times[0]:g} s), got {float(t):g}")
     truth = runs.log.truth
     has = runs.dof > 0
     n_nis = int(has.sum())
@@ -221,6 +229,9 @@ class OrbitDemoFigure(DemoFigure):
     HEADER_IN = 0.78
     #: inches under the panels: tick labels and the time label
     FOOTER_IN = 0.5
+    #: height of the gap between the error panels and the NIS panel, for the time tick labels of the lower error
+    #: row (a share of a panel's height)
+    LABEL_GAP = 0.2
 
     def __init__(self, figure=None):
         from matplotlib.patches import Circle
@@ -228,11 +239,12 @@ class OrbitDemoFigure(DemoFigure):
         self.fig = fig = new_figure(figure, (11.0, 6.2))
         height = fig.get_figheight()
         right, top = 0.985, 1 - self.HEADER_IN / height
-        grid = fig.add_gridspec(3, 3, width_ratios=(1.3, 1, 1), left=0.06, right=right,
-                                bottom=self.FOOTER_IN / height, top=top, wspace=0.42, hspace=0.16)
+        # rows: two of error panels, a gap for the lower row's time tick labels, the NIS panel
+        grid = fig.add_gridspec(4, 3, width_ratios=(1.3, 1, 1), height_ratios=(1, 1, self.LABEL_GAP, 1), left=0.06,
+                                right=right, bottom=self.FOOTER_IN / height, top=top, wspace=0.42, hspace=0.16)
         self.orbit = fig.add_subplot(grid[:, 0])
         self.error_axes = [fig.add_subplot(grid[i // 2, 1 + i % 2]) for i in range(4)]
-        self.nis_ax = fig.add_subplot(grid[2, 1:], sharex=self.error_axes[0])
+        self.nis_ax = fig.add_subplot(grid[3, 1:], sharex=self.error_axes[0])
         for ax in self.error_axes[1:]:
             ax.sharex(self.error_axes[0])
         self.time_axes = [*self.error_axes, self.nis_ax]
@@ -240,6 +252,7 @@ class OrbitDemoFigure(DemoFigure):
         for ax, (label, _, unit) in zip(self.error_axes, ERROR_UNITS):
             self.lines.append(error_lines(ax))
             ax.set_ylabel(f"${label}$ [{unit}]")
+        for ax in self.error_axes[:2]:   # the lower row labels the error panels' time axis (half the NIS panel's)
             ax.tick_params(labelbottom=False)
         self.band_lo, = self.nis_ax.plot([], [], color="0.45", lw=0.8, drawstyle="steps-mid", label="NIS band")
         self.band_hi, = self.nis_ax.plot([], [], color="0.45", lw=0.8, drawstyle="steps-mid")
@@ -254,7 +267,7 @@ class OrbitDemoFigure(DemoFigure):
         self.track, = ax.plot([], [], color="0.3", lw=0.7)
         self.sight, = ax.plot([], [], color="C2", lw=1.0)
         self.hidden, = ax.plot([], [], "^", color="0.55", ms=5)
-        self.visible, = ax.plot([], [], "^", color="C2", ms=7, label="station seeing it")
+        self.visible, = ax.plot([], [], "^", color="C2", ms=7, label="station measured")
         self.satellite, = ax.plot([], [], "o", color="C3", ms=6, label="satellite")
         ax.set_aspect("equal", adjustable="box")
         ax.set_xlim(-7.6, 7.6)
