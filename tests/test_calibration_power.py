@@ -2,8 +2,9 @@
 checks, and the assignment's four as a family of their own) is what detection_rates computes (a subset recomputed with the same seeds gives the same failed checks, and
 with other seeds a rate consistent with the stored one), its CSV round-trips, its bands are the exact
 binomial (Clopper-Pearson) bands, the correct filter's false-alarm rate is consistent with at most
-alpha over all N together (at N = 80 alone it is not: 20 of 200, all by the residual-independence check), and
-bad arguments raise ValueError naming the argument."""
+alpha over all N together (at N = 80 alone it is not: 20 of 200, all by the residual-independence check, a
+rare draw of those seeds: the stored fresh-seed table, 1000 other seeds at N = 10 and 80, is consistent with
+at most alpha, and a subset of it recomputed gives the same failed checks, slow tier), and bad arguments raise ValueError naming the argument."""
 
 from pathlib import Path
 
@@ -150,6 +151,30 @@ def test_false_alarm_rate_of_the_correct_filter_is_consistent_with_at_most_alpha
     assert stats.binomtest(k, stored.reps * len(stored.n_runs)).proportion_ci(0.95, method="exact").low <= stored.alpha
     ri = np.array(CHECK_NAMES) == "residual_independence"
     assert np.all(stored.failed[0, j80][stored.detected[0, j80]] == ri)
+
+
+def test_the_fresh_seed_table_of_the_correct_filter_is_consistent_with_at_most_alpha(stored):
+    """The stored fresh-seed table (benchmarks/detection_rates.py --fresh): the correct filter alone, 1000
+    repetitions at N = 10 and 80 on seeds other than the main table's; at both N its false-alarm rate is
+    consistent with at most alpha (at N = 80 too, where the main table's 200 seeds gave 20 false alarms), and
+    the W mistake fails the residual-independence check on exactly the correct filter's repetitions at N = 80."""
+    fresh = stored_detection_rates("fresh")
+    assert fresh.mistakes == ("correct",) and fresh.n_runs == (10, 80) and fresh.reps == 1000
+    assert fresh.checks == CHECK_NAMES and fresh.alpha == stored.alpha and fresh.seed != stored.seed
+    lo, hi = fresh.band(0.95)
+    assert np.all(lo[0] <= fresh.alpha) and np.all(fresh.alpha < hi[0] + 0.01)
+    j80, ri = stored.n_runs.index(80), CHECK_NAMES.index("residual_independence")
+    w = stored.mistakes.index("w_is_gps_velocity_var")
+    assert np.array_equal(stored.failed[0, j80, :, ri], stored.failed[w, j80, :, ri])
+
+
+@pytest.mark.slow
+def test_a_subset_of_the_fresh_seed_table_recomputed_gives_the_same_failed_checks():
+    """The first 100 repetitions of the stored fresh-seed table at N = 10 and 80, recomputed with its seed."""
+    fresh = stored_detection_rates("fresh")
+    reps = 100
+    again = detection_rates(["correct"], list(fresh.n_runs), reps=reps, seed=fresh.seed)
+    assert np.array_equal(again.failed, fresh.failed[:, :, :reps])
 
 
 def test_the_repetitions_only_phi02_sign_fails_fail_the_orthogonality_check_alone(stored):
