@@ -337,31 +337,99 @@ def test_bad_settings_raise_valueerror_naming_them(check, setting, name):
 
 
 # ---------------------------------------------------------------------------
-# 22.1: the band from the gamma distribution (chi-square with d dof is gamma(d/2, scale 2))
-def gamma_band(dof, n, lower_q, upper_q):
-    from scipy import stats
-    return np.array([stats.gamma.ppf(lower_q, dof / 2, scale=2.0), stats.gamma.ppf(upper_q, dof / 2, scale=2.0)]) / n
+# 22.1: the weights from Merwe's formulas (not filterpy's class), the mean as the angle of a sum of unit complex numbers
+def merwe_formula_weights(n=4, alpha=1.0, beta=2.0, kappa=0.0):
+    lam = alpha**2 * (n + kappa) - n
+    wm = np.array([lam / (n + lam)] + [1 / (2 * (n + lam))] * (2 * n))
+    wc = wm.copy()
+    wc[0] += 1 - alpha**2 + beta
+    return wm, wc
 
 
-def nis_band(**kw):
-    one, two = _shared.NIS_ONE, _shared.NIS_TWO
-    dof = kw.get("dof", 3 * one + 6 * two)
-    q = kw.get("q", (0.025, 0.975))
-    return gamma_band(dof, kw.get("n", one + two), *q) * kw.get("times", 1)
+def phasor_mean(phi, w):
+    return float(np.angle(np.sum(w * np.exp(1j * np.asarray(phi)))))
 
 
-def test_22_1_accepts_the_gamma_band_of_the_dof_present():
-    fb = ex.check_run_nis_band(nis_band())
+PHI_22_1 = np.array(_shared.UKF_PHI)
+WM_22_1, WC_22_1 = merwe_formula_weights()
+RIGHT_22_1 = phasor_mean(PHI_22_1, WM_22_1)
+
+
+def test_22_1_accepts_the_phasor_mean_with_merwes_mean_weights():
+    assert WM_22_1[0] == 0 and WC_22_1[0] == 2          # the centre point: no weight in the mean, 2 in the covariance
+    fb = ex.check_ukf_phi_mean(RIGHT_22_1)
     assert fb.correct, str(fb)
+    assert ex.check_ukf_phi_mean(np.float64(RIGHT_22_1)).correct and ex.check_ukf_phi_mean(np.array(RIGHT_22_1)).correct
 
 
-@pytest.mark.parametrize("key", ["fixed_dof", "max_dof", "state_dof", "one_sided", "not_divided"])
-def test_22_1_names_each_mistake(key):
-    n = _shared.NIS_ONE + _shared.NIS_TWO
-    wrong = {"fixed_dof": nis_band(dof=3 * n), "max_dof": nis_band(dof=6 * n), "state_dof": nis_band(dof=4 * n),
-             "one_sided": nis_band(q=(0.05, 0.95)), "not_divided": nis_band(times=n)}[key]
-    fb = ex.check_run_nis_band(wrong)
-    assert not fb.correct and fb.message == hint("22.1", key), str(fb)
+def test_22_1_the_phi_values_straddle_pi_and_the_mean_is_near_minus_pi():
+    assert PHI_22_1.min() < -2.5 and PHI_22_1.max() > 2.5 and np.all(np.abs(PHI_22_1) > 2.5)
+    assert -np.pi < RIGHT_22_1 < -3.0                   # so that [0, 2 pi) differs from (-pi, pi]
+
+
+def wrapped(a):
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+@pytest.mark.parametrize("key, wrong", [
+    ("plain", float(WM_22_1 @ PHI_22_1)),                                      # weighted arithmetic mean
+    ("plain", float(np.sum(PHI_22_1) / PHI_22_1.size)),                        # plain arithmetic mean
+    ("unweighted", phasor_mean(PHI_22_1, np.ones(9))),                         # every point alike
+    ("wc", phasor_mean(PHI_22_1, WC_22_1)),                                    # the covariance weights
+    ("wrap_2pi", RIGHT_22_1 + 2 * np.pi),                                      # in [0, 2 pi)
+    ("shifted", float(WM_22_1 @ np.where(PHI_22_1 < 0, PHI_22_1 + 2 * np.pi, PHI_22_1))),
+    ("shifted", float(wrapped(WM_22_1 @ np.unwrap(PHI_22_1)))),                # np.unwrap, then wrapped back
+    ("arctan", float(np.arctan(np.sum(WM_22_1 * np.sin(PHI_22_1)) / np.sum(WM_22_1 * np.cos(PHI_22_1))))),
+])
+def test_22_1_names_each_mistake(key, wrong):
+    fb = ex.check_ukf_phi_mean(wrong)
+    assert not fb.correct and fb.answered and fb.message == hint("22.1", key), str(fb)
+
+
+def test_22_1_slips_get_their_hint_and_no_hint_tells_the_answer():
+    assert "in degrees" in ex.check_ukf_phi_mean(np.degrees(RIGHT_22_1)).message
+    assert "1000 times the right one" in ex.check_ukf_phi_mean(1000 * RIGHT_22_1).message
+    assert ex.check_ukf_phi_mean(round(RIGHT_22_1, 4)).message == ROUNDED_HINT
+    for text in (*ex.EXERCISES["22.1"].hints.values(), ex.EXERCISES["22.1"].praise):
+        assert f"{RIGHT_22_1:.2f}" not in text and f"{RIGHT_22_1:.1f}" not in text and "3.07" not in text
+
+
+def test_22_1_minus_pi_counts_as_pi():
+    phi = np.array([np.pi] + [np.pi - 0.1, -np.pi + 0.1] * 4)   # symmetric about pi: the mean is pi (or -pi)
+    assert ex.check_ukf_phi_mean(np.pi, phi=phi).correct and ex.check_ukf_phi_mean(-np.pi, phi=phi).correct
+
+
+def test_22_1_the_grade_is_the_fresh_process_recheck_not_the_kernels_check(monkeypatch):
+    """A student's kernel where the check (or Feedback) is patched to praise anything shows ✔, but the grader's
+    re-check of the recorded answer runs the genuine check in a fresh process: ✘ for a wrong answer."""
+    import json
+    import subprocess
+    import sys
+
+    import kfcal_helpers.orbit.exercises as package
+    from kfcal_helpers.exercises import Feedback
+    from kfcal_helpers.exercises.grading import make_record
+
+    module, check = "kfcal_helpers.orbit.exercises", "check_ukf_phi_mean"
+    plain = float(WM_22_1 @ PHI_22_1)
+    monkeypatch.setattr(package, check, lambda answer, **kw: Feedback("22.1", True, "patched"))
+    line, wrong = make_record("22.1", module, check, plain)
+    assert line.startswith("✔")                          # the patched kernel praises it
+    _, right = make_record("22.1", module, check, RIGHT_22_1)
+    items = [{"exercise": "22.1", "module": module, "check": check, "record": r} for r in (right, wrong)]
+    done = subprocess.run([sys.executable, "-P", "-m", "kfcal_helpers.exercises.grading"],
+                          input=json.dumps(items).encode(), capture_output=True, check=True)
+    verdicts = json.loads(done.stdout)
+    assert [v["correct"] for v in verdicts] == [True, False]
+    assert verdicts[1]["line"] == "✘ 22.1 not yet: " + hint("22.1", "plain")
+
+
+@pytest.mark.parametrize("setting, name", [({"phi": np.zeros(8)}, "phi"), ({"phi": [np.nan] * 9}, "phi"),
+                                           ({"phi": [0.0, np.pi] * 4 + [0.0]}, "phi"), ({"alpha": 0.0}, "alpha"),
+                                           ({"beta": float("inf")}, "beta"), ({"kappa": -4.0}, "alpha and kappa")])
+def test_22_1_bad_settings_raise_valueerror_naming_them(setting, name):
+    with pytest.raises(ValueError, match=f"^{name} "):
+        ex.check_ukf_phi_mean(0.0, **setting)
 
 
 # ---------------------------------------------------------------------------
@@ -429,11 +497,11 @@ def test_22_2_the_phi_residual_of_station_4_needs_the_wrap():
 
 
 def test_every_listed_hint_of_22_is_tested_and_placeholders_are_unanswered():
-    tested = {"22.1": {"fixed_dof", "max_dof", "state_dof", "one_sided", "not_divided"},
+    tested = {"22.1": {"plain", "unweighted", "wc", "wrap_2pi", "shifted", "arctan"},
               "22.2": {"no_wrap", "first_only", "second_only", "gain_R", "zero_based"}}
     for exercise, keys in tested.items():
         assert set(ex.EXERCISES[exercise].hints) == keys
-    for check in (ex.check_run_nis_band, ex.check_stacked_update):
+    for check in (ex.check_ukf_phi_mean, ex.check_stacked_update):
         fb = check(...)
         assert not fb.correct and not fb.answered
 
@@ -441,8 +509,12 @@ def test_every_listed_hint_of_22_is_tested_and_placeholders_are_unanswered():
 def test_the_notebook_22_states_the_exercises_numbers():
     from pathlib import Path
     text = (Path(__file__).resolve().parents[1] / "notebooks" / "source" / "22_orbit_ekf_ukf.md").read_text()
-    assert "30 runs have one\nstation with a measurement and 20 have two" in text and "($\\alpha$ = 0.05)" in text
-    assert (_shared.NIS_ONE, _shared.NIS_TWO, _shared.NIS_ALPHA) == (30, 20, 0.05)
+    phi = ",\\ ".join(f"{v:.4f}" for v in _shared.UKF_PHI)
+    assert f"$\\phi = [{phi}]$" in text.replace("\n", " ")
+    assert "MerweScaledSigmaPoints(4, alpha=1.0, beta=2.0, kappa=0.0)" in text
+    from kfcal_helpers.orbit import FilterSetup
+    setup = FilterSetup("ukf")
+    assert (_shared.UKF_ALPHA, _shared.UKF_BETA, _shared.UKF_KAPPA) == (setup.alpha, setup.beta, setup.kappa) == (1.0, 2.0, 0.0)
     assert "At $t$ = 576 s stations 4 and 5" in text and (_shared.UPD_T, _shared.UPD_STATIONS) == (576.0, (4, 5))
     assert "$\\hat x^- = [-1991.4,\\ -7.3743,\\ 6374.2,\\ -2.3039]^T$" in text
     assert "\\operatorname{diag}(0.04,\\ 10^{-6},\\ 0.04,\\ 10^{-6})" in text and _shared.UPD_P == (0.04, 1e-6, 0.04, 1e-6)
@@ -457,9 +529,3 @@ def test_the_notebook_22_states_the_exercises_numbers():
 def test_22_2_bad_settings_raise_valueerror_naming_them(setting, name):
     with pytest.raises(ValueError, match=f"^{name} "):
         ex.check_stacked_update(np.zeros(4), **setting)
-
-
-@pytest.mark.parametrize("setting, name", [({"one": -1}, "one"), ({"one": 0, "two": 0}, "one"), ({"alpha": 1.5}, "alpha")])
-def test_22_1_bad_settings_raise_valueerror_naming_them(setting, name):
-    with pytest.raises(ValueError, match=f"^{name} "):
-        ex.check_run_nis_band(np.zeros(2), **setting)

@@ -3,57 +3,81 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
+from filterpy.kalman import MerweScaledSigmaPoints
 
-from ...exercises._core import Exercise, Feedback, distinct_mistakes
-from ...validation import (require_covariance, require_finite, require_finite_array, require_int, require_shape,
-                           require_significance)
+from ...angles import angle_slice, weighted_mean, wrap_angle
+from ...exercises._core import Exercise, Feedback, distinct_mistakes, matches
+from ...validation import (require_covariance, require_finite, require_finite_array, require_int, require_positive,
+                           require_shape)
 from ..params import N_STATES, N_STATION_MEAS
 from ..model import jacobian_C, measure
-from ._shared import PARAMS, in_km, NIS_ALPHA, NIS_ONE, NIS_TWO, NUM_ATOL, NUM_RTOL, UPD_P, UPD_STATIONS, UPD_T, UPD_X, UPD_Y
+from ._shared import (PARAMS, in_km, NUM_ATOL, NUM_RTOL, UKF_ALPHA, UKF_BETA, UKF_KAPPA, UKF_PHI, UPD_P, UPD_STATIONS,
+                      UPD_T, UPD_X, UPD_Y)
 
-__all__ = ["RUN_NIS_BAND", "STACKED_UPDATE", "RECORDS", "check_run_nis_band", "check_stacked_update"]
+__all__ = ["UKF_PHI_MEAN", "STACKED_UPDATE", "RECORDS", "check_ukf_phi_mean", "check_stacked_update"]
 
 _P = PARAMS
 
-RUN_NIS_BAND = Exercise(
+UKF_PHI_MEAN = Exercise(
     "22.1",
-    praise="the band of the run-averaged NIS from the dof present: chi2 quantiles of sum 3 m_r, over the runs",
+    praise="atan2 of the Wm-weighted sines and cosines: the sigma points' mean phi across +-pi, as z_mean takes it",
     hints={
-        "fixed_dof": "3 dof for every run is the band of one station: the runs that see two stations bring 6 dof "
-                     "each; add up the dof present",
-        "max_dof": "6 dof for every run counts two stations where only one is present: add up the dof present",
-        "state_dof": "the NIS has the measurement's dof (3 per station present), not the state's 4",
-        "one_sided": "a two-sided test puts alpha/2 in each tail: use the alpha/2 and 1 - alpha/2 quantiles",
-        "not_divided": "the band is of the run average: divide the chi-square quantiles by the number of runs",
+        "plain": "that is an arithmetic mean of the phi values: angles just above -pi and just below +pi average to "
+                 "about 0; take atan2 of the Wm-weighted sines and cosines, as the notebook's z_mean does",
+        "unweighted": "every sigma point weighs the same in your mean: weight them by the mean weights Wm of the "
+                      "sigma points",
+        "wc": "those are the covariance weights Wc: the mean of the sigma points takes the mean weights Wm",
+        "wrap_2pi": "your phi lies in [0, 2 pi): the exercise asks for (-pi, pi], as atan2 returns it",
+        "shifted": "shifting the phi values into [0, 2 pi) (or np.unwrap) before a weighted arithmetic mean is not "
+                   "the circular mean: take atan2 of the Wm-weighted sines and cosines",
+        "arctan": "arctan of the ratio of the sums loses the quadrant (the cosine sum is negative near +-pi): use "
+                  "atan2(sine sum, cosine sum)",
     },
-    components=("the lower bound", "the upper bound"),
-    units=False,
+    angles=True,
 )
 
 
-def _band(dof: int, n: int, alpha: float, one_sided: bool = False) -> np.ndarray:
-    q = (alpha, 1 - alpha) if one_sided else (alpha / 2, 1 - alpha / 2)
-    return stats.chi2.ppf(q, dof) / n
+_AT_PI = 1e-9  # an angle this close to -pi is pi: (-pi, pi] or [-pi, pi) is a convention, not a mistake
 
 
-def check_run_nis_band(answer, *, one: int = NIS_ONE, two: int = NIS_TWO, alpha: float = NIS_ALPHA) -> Feedback:
-    """22.1: the two-sided band ``(lower, upper)`` at significance ``alpha`` of the NIS averaged over the runs
-    that have a measurement at one step, ``one`` of them with one station (3 dof) and ``two`` with two (6 dof).
+def _pi_for_minus_pi(v: float) -> float:
+    return float(np.pi) if abs(float(v) + np.pi) < _AT_PI else float(v)
 
-    answer : array (2,), dimensionless
+
+def _circular(phi: np.ndarray, w: np.ndarray) -> float:
+    """The weighted circular mean of the angles ``phi`` (m,) (rad), in (-pi, pi]."""
+    return float(weighted_mean(phi[:, None], w, angle_slice([0]))[0])
+
+
+def check_ukf_phi_mean(answer, *, phi=UKF_PHI, alpha: float = UKF_ALPHA, beta: float = UKF_BETA,
+                       kappa: float = UKF_KAPPA) -> Feedback:
+    """22.1: the UKF's predicted phi (rad, one float in (-pi, pi]) of one station: the circular mean, with the
+    mean weights ``Wm`` of ``MerweScaledSigmaPoints(4, alpha, beta, kappa)``, of the ``phi`` entries (9,) (rad)
+    of the nine measurement sigma points (the centre point first).
+
+    answer : float, rad
     """
-    one = require_int("one", one, minimum=0, maximum=10**6)
-    two = require_int("two", two, minimum=0, maximum=10**6)
-    if one + two < 1:
-        raise ValueError("one and two: at least one run must have a station")
-    alpha = require_significance("alpha", alpha)
-    n = one + two
-    dof = 3 * one + 6 * two
-    expected = _band(dof, n, alpha)
-    wrong = [(_band(3 * n, n, alpha), "fixed_dof"), (_band(6 * n, n, alpha), "max_dof"), (_band(4 * n, n, alpha), "state_dof"),
-             (_band(dof, n, alpha, one_sided=True), "one_sided"), (_band(dof, n, alpha) * n, "not_divided")]
-    return RUN_NIS_BAND.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL, atol=NUM_ATOL)
+    phi = require_finite_array("phi", phi, (2 * N_STATES + 1,))
+    alpha, beta, kappa = require_positive("alpha", alpha), require_finite("beta", beta), require_finite("kappa", kappa)
+    if abs(alpha**2 * (N_STATES + kappa)) < 1e-12:
+        raise ValueError("alpha and kappa must give n + lambda = alpha^2 (n + kappa) != 0")
+    points = MerweScaledSigmaPoints(N_STATES, alpha=alpha, beta=beta, kappa=kappa)
+    wm, wc = points.Wm, points.Wc
+    sin_sum, cos_sum = wm @ np.sin(phi), wm @ np.cos(phi)
+    if np.hypot(sin_sum, cos_sum) < 1e-9:
+        raise ValueError("phi has no mean direction: its Wm-weighted sines and cosines sum to 0")
+    expected = _pi_for_minus_pi(_circular(phi, wm))
+    if matches(answer, -np.pi, rtol=0, atol=_AT_PI):
+        answer = np.pi
+    shifted = float(wm @ np.mod(phi, 2 * np.pi))
+    wrong = [(wm @ phi, "plain"), (np.mean(phi), "plain"), (_circular(phi, np.full(phi.size, 1.0 / phi.size)), "unweighted"),
+             (_circular(phi, wc), "wc"), (np.mod(expected, 2 * np.pi), "wrap_2pi"), (shifted, "shifted"),
+             (wrap_angle(shifted), "shifted")]
+    if cos_sum != 0:
+        wrong.append((np.arctan(sin_sum / cos_sum), "arctan"))
+    wrong = [(_pi_for_minus_pi(v), key) for v, key in wrong]
+    return in_km(UKF_PHI_MEAN.judge(answer, expected, distinct_mistakes(wrong, expected, 1e-9), rtol=NUM_RTOL,
+                                    atol=NUM_ATOL))
 
 
 STACKED_UPDATE = Exercise(
@@ -112,4 +136,4 @@ def check_stacked_update(answer, *, x=UPD_X, P_diag=UPD_P, t: float = UPD_T, sta
 
 
 #: the exercise records of this lesson, in notebook order
-RECORDS = (RUN_NIS_BAND, STACKED_UPDATE)
+RECORDS = (UKF_PHI_MEAN, STACKED_UPDATE)

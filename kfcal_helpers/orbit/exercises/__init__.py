@@ -20,7 +20,7 @@ exercise   check                                       answer
 20.3       :func:`check_expm_F`                        F = expm(dT A) on the nominal, (4, 4)
 21.1       :func:`check_nis_step_band`                 one step's NIS band, (2,)
 21.2       :func:`check_two_station_S`                 S of a two-station step, (6, 6)
-22.1       :func:`check_run_nis_band`                  run-averaged NIS band from the dof present, (2,)
+22.1       :func:`check_ukf_phi_mean`                  the UKF's predicted phi, circular mean, rad
 22.2       :func:`check_stacked_update`                EKF correction K nu of a 2-station update, (4,)
 23.1       :func:`check_log_nis_band`                  time-averaged NIS bounds, dof summed, (2,)
 23.2       :func:`check_step_nis_band`                 one step's NIS bounds, (2,)
@@ -33,7 +33,7 @@ import path.
 
 from ._shared import A_X, EXPM_DT, MEAS_STATION, MEAS_T, MEAS_X, PERIOD_DX0, ROW_STATION, ROW_T, ROW_X, VIS_T, VIS_X  # noqa: F401
 from ._shared import LOG_ALPHA, LOG_EMPTY_STEPS, LOG_ONE_STATION, LOG_TWO_STATIONS, LOG_STEP_ALPHA, LOG_STEP_STATIONS  # noqa: F401
-from ._shared import NIS_ALPHA, NIS_ONE, NIS_TWO, UPD_P, UPD_STATIONS, UPD_T, UPD_X, UPD_Y  # noqa: F401
+from ._shared import UKF_ALPHA, UKF_BETA, UKF_KAPPA, UKF_PHI, UPD_P, UPD_STATIONS, UPD_T, UPD_X, UPD_Y  # noqa: F401
 from ._19_model import (PERTURBED_PERIOD, STATION_MEASUREMENT, VISIBLE_STATIONS, check_perturbed_period,  # noqa: F401
                         check_station_measurement, check_visible_stations)
 from ._19_model import RECORDS as _19_MODEL_RECORDS
@@ -56,12 +56,12 @@ from ._21_lkf import (  # noqa: F401
 )
 from ._21_lkf import RECORDS as _21_LKF_RECORDS
 
-from ._22_ekf_ukf import RUN_NIS_BAND, STACKED_UPDATE, check_run_nis_band, check_stacked_update  # noqa: F401
+from ._22_ekf_ukf import STACKED_UPDATE, UKF_PHI_MEAN, check_stacked_update, check_ukf_phi_mean  # noqa: F401
 from ._22_ekf_ukf import RECORDS as _22_EKF_UKF_RECORDS
 
 __all__ = ["EXERCISES", "check_station_measurement", "check_visible_stations", "check_perturbed_period", "check_gravity_jacobian",
            "check_range_rate_row", "check_expm_F", "check_nis_step_band", "check_two_station_S",
-           "STEP_STATIONS", "STEP_ALPHA", "S_TIME", "S_PRIOR", "step_stations_visible", "check_run_nis_band", "check_stacked_update",
+           "STEP_STATIONS", "STEP_ALPHA", "S_TIME", "S_PRIOR", "step_stations_visible", "check_ukf_phi_mean", "check_stacked_update",
            "check_log_nis_band", "check_step_nis_band"]
 
 #: every exercise record of these notebooks, by id (in notebook order)

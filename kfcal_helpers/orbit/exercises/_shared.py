@@ -59,8 +59,10 @@ def in_km(feedback: Feedback) -> Feedback:
     end = message.find(")", start)
     return replace(feedback, message=message[:start] + KM_UNITS + message[end + 1:])
 
-#: 22.1: a step of a truth-model test: runs with one station, runs with two, significance of the band
-NIS_ONE, NIS_TWO, NIS_ALPHA = 30, 20, 0.05
+#: 22.1: the phi entries (rad) of the nine measurement sigma points of one station, the centre point first, and
+#: the notebook's MerweScaledSigmaPoints(4, alpha, beta, kappa) of the UKF
+UKF_PHI = (-3.0832, -2.8332, -2.9832, -2.7332, -3.0332, 3.0000, 3.0800, 2.9200, 3.1400)
+UKF_ALPHA, UKF_BETA, UKF_KAPPA = 1.0, 2.0, 0.0
 #: 22.2: one EKF update: the time (s), the stations (1..12) with a measurement, the prior x- (4,) and the
 #: diagonal of P- (km, km/s), and the two stations' measurements [rho, rhodot, phi] (km, km/s, rad)
 UPD_T = 576.0
