@@ -79,6 +79,8 @@ def test_with_the_course_log(monkeypatch, nbval_runs):
     _check(_execute(monkeypatch, os.environ["KFCAL_COURSE_LOG"], nbval_runs), "course")
 
 
+# each case executes the whole notebook in a kernel of its own (about 7 s): the slow tier, which .ci/run runs
+@pytest.mark.slow
 @pytest.mark.parametrize("make", [
     lambda: simulate(replace(CoopParams(), Qtrue=4.0 * CoopParams().Qtrue), seed=7).log(),
     lambda: simulate(CoopParams(duration=0.1), seed=3).log(),

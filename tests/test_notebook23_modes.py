@@ -75,9 +75,11 @@ LOGS = {
     "Rtrue x 4, 300 steps (CSV folder)": lambda: simulate(replace(OrbitParams(n_steps=300),
                                                                   Rtrue=4 * OrbitParams().Rtrue), seed=11).log(),
 }
+#: the logs whose run takes longest (the full-size one and the 300 steps): the slow tier, which .ci/run runs
+SLOW_LOGS = ("another seed (.mat)", "Rtrue x 4, 300 steps (CSV folder)")
 
 
-@pytest.mark.parametrize("name", list(LOGS))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_LOGS else n for n in LOGS])
 def test_with_another_valid_log(name, tmp_path, monkeypatch):
     log = LOGS[name]()
     path = write_log_csv(log, tmp_path / "log") if "CSV" in name else write_log_mat(log, tmp_path / "orbit.mat")
